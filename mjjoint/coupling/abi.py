@@ -1,0 +1,157 @@
+"""Where mjjoint reaches into MuJoCo's C structs, found at run time for the installed release.
+
+Struct offsets change between MuJoCo releases, so none is hard-coded. The pointer sections
+of ``mjData`` and ``mjModel`` (everything after ``void* buffer``) are runs of 8-byte pointers
+in header order; the order is read from the headers the wheel ships, one field is located by
+scanning a live struct for the address the Python bindings report, the others follow from the
+order, and several are checked against the bindings before anything is trusted.
+"""
+from __future__ import annotations
+
+import ctypes
+import functools
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+MUJOCO_DIR = Path(mujoco.__file__).parent
+_PTR = 8
+_TIMESTEP_PROBE = 0.000123456789012345  # a value no default option field holds
+
+
+@functools.lru_cache(maxsize=None)
+def libmujoco() -> ctypes.CDLL:
+    """The shared library the Python bindings themselves load."""
+    path = MUJOCO_DIR / f"libmujoco.so.{mujoco.__version__}"
+    if not path.exists():
+        raise RuntimeError(f"mjjoint needs {path.name} from mujoco {mujoco.__version__}; not found in {MUJOCO_DIR}")
+    return ctypes.CDLL(str(path))
+
+
+def _pointer_fields(header: str, struct: str) -> list[str]:
+    text = (MUJOCO_DIR / "include" / "mujoco" / header).read_text()
+    body = text[text.index(f"struct {struct}_ {{"):]
+    body = body[: body.index("\n}")]
+    lines = body[re.search(r"void\*\s+buffer;", body).start():].splitlines()
+    names: list[str] = []
+    tail = False  # scalar fields may close the struct (mjData.signature), never interrupt the run
+    for line in lines:
+        code = line.split("//")[0].strip()
+        if not code:
+            continue
+        m = re.fullmatch(r"[\w ]+\*\s*(\w+);", code)
+        if m is None:
+            tail = True
+        elif tail:
+            raise RuntimeError(f"pointer field {m.group(1)!r} after scalars in {struct}: unsupported layout")
+        else:
+            names.append(m.group(1))
+    return names
+
+
+def _read_u64(address: int) -> int:
+    return ctypes.c_uint64.from_address(address).value
+
+
+def _locate(struct_addr: int, fields: list[str], known: dict[str, int]) -> dict[str, int]:
+    """Offsets of ``fields``, anchored where every pointer in ``known`` matches at once.
+
+    Several anchors are needed because d->buffer equals d->qpos; the solver statistics make
+    mjData ~200 kB before its pointer run, hence the long scan.
+    """
+    first, first_ptr = next(iter(known.items()))
+    for off in range(0, 1 << 21, _PTR):
+        if _read_u64(struct_addr + off) != first_ptr:
+            continue
+        base = off - _PTR * fields.index(first)
+        if base >= 0 and all(_read_u64(struct_addr + base + _PTR * fields.index(n)) == p
+                             for n, p in known.items()):
+            return {name: base + _PTR * i for i, name in enumerate(fields)}
+    raise RuntimeError(f"could not locate {list(known)} in a live MuJoCo {mujoco.__version__} struct")
+
+
+@dataclass(frozen=True)
+class Offsets:
+    """Byte offsets of the fields the plugin callbacks read."""
+
+    d_qpos: int
+    d_qvel: int
+    d_qfrc_passive: int
+    d_plugin_state: int
+    d_plugin_data: int
+    m_jnt_type: int
+    m_jnt_qposadr: int
+    m_jnt_dofadr: int
+    m_plugin_stateadr: int
+    m_timestep: int
+
+
+_PROBE_XML = """<mujoco><worldbody><body><joint name="a"/><geom size=".1"/>
+<body pos="0 0 -1"><joint name="b"/><geom size=".1"/></body></body></worldbody>
+<actuator><motor joint="a"/></actuator></mujoco>"""
+
+
+@functools.lru_cache(maxsize=None)
+def offsets() -> Offsets:
+    """Discover and verify the offsets on a probe model of the installed MuJoCo."""
+    m = mujoco.MjModel.from_xml_string(_PROBE_XML)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    dfields = _pointer_fields("mjdata.h", "mjData")
+    mfields = _pointer_fields("mjmodel.h", "mjModel")
+    dd = _locate(d._address, dfields, {n: getattr(d, n).ctypes.data for n in ("qpos", "qvel", "qacc")})
+    mm = _locate(m._address, mfields, {n: getattr(m, n).ctypes.data for n in ("jnt_qposadr", "jnt_dofadr")})
+    for name in ("qvel", "qfrc_passive", "ctrl", "xpos", "qacc"):
+        if _read_u64(d._address + dd[name]) != getattr(d, name).ctypes.data:
+            raise RuntimeError(f"mjData.{name} offset check failed for mujoco {mujoco.__version__}")
+    for name in ("jnt_type", "jnt_dofadr", "body_mass", "dof_damping", "actuator_gear"):
+        if _read_u64(m._address + mm[name]) != getattr(m, name).ctypes.data:
+            raise RuntimeError(f"mjModel.{name} offset check failed for mujoco {mujoco.__version__}")
+    # opt.timestep lives in the embedded mjOption before the pointer run: find it by value.
+    saved = m.opt.timestep
+    m.opt.timestep = _TIMESTEP_PROBE
+    raw = ctypes.string_at(m._address, mm["buffer"])
+    hits = [i for i in range(0, len(raw) - 7, 8)
+            if np.frombuffer(raw[i:i + 8], dtype=np.float64)[0] == _TIMESTEP_PROBE]
+    m.opt.timestep = saved
+    if len(hits) != 1:
+        raise RuntimeError(f"could not locate mjModel.opt.timestep in mujoco {mujoco.__version__}")
+    return Offsets(
+        d_qpos=dd["qpos"], d_qvel=dd["qvel"], d_qfrc_passive=dd["qfrc_passive"],
+        d_plugin_state=dd["plugin_state"], d_plugin_data=dd["plugin_data"],
+        m_jnt_type=mm["jnt_type"], m_jnt_qposadr=mm["jnt_qposadr"], m_jnt_dofadr=mm["jnt_dofadr"],
+        m_plugin_stateadr=mm["plugin_stateadr"], m_timestep=hits[0],
+    )
+
+
+class MjpPlugin(ctypes.Structure):
+    """ctypes mirror of ``mjpPlugin`` (mjplugin.h of mujoco 3.17.0, 152 bytes)."""
+
+    _fields_ = [
+        ("name", ctypes.c_char_p),
+        ("nattribute", ctypes.c_int),
+        ("attributes", ctypes.POINTER(ctypes.c_char_p)),
+        ("capabilityflags", ctypes.c_int),
+        ("needstage", ctypes.c_int),
+        ("nstate", ctypes.c_void_p),
+        ("nsensordata", ctypes.c_void_p),
+        ("init", ctypes.c_void_p),
+        ("destroy", ctypes.c_void_p),
+        ("copy", ctypes.c_void_p),
+        ("reset", ctypes.c_void_p),
+        ("compute", ctypes.c_void_p),
+        ("advance", ctypes.c_void_p),
+        ("visualize", ctypes.c_void_p),
+        ("actuator_act_dot", ctypes.c_void_p),
+        ("sdf_distance", ctypes.c_void_p),
+        ("sdf_gradient", ctypes.c_void_p),
+        ("sdf_staticdistance", ctypes.c_void_p),
+        ("sdf_attribute", ctypes.c_void_p),
+        ("sdf_aabb", ctypes.c_void_p),
+    ]
+
+
+assert ctypes.sizeof(MjpPlugin) == 152, "mjpPlugin mirror must match mujoco 3.17.0"

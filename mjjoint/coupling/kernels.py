@@ -1,0 +1,76 @@
+"""The joint's per-step physics on a parameter block and a state slice (pure, numba).
+
+``joint_forces`` is what the plugin's compute adds to qfrc_passive; ``joint_advance`` is what
+its advance does to the internal states. Both take plain arrays, so the offline tools (traces,
+energy, tests) evaluate the very functions the plugin runs.
+"""
+from __future__ import annotations
+
+from numba import njit
+
+from ..physics.boucwen import boucwen_step
+from ..physics.load import bearing_friction
+from ..physics.ripple import ripple_torque
+from ..physics.stribeck import static_friction
+from ..physics.transmission import engaged, transmission_torque
+from ..physics.twosep import twosep_force, twosep_step
+from .layout import (ASYM, B, BACKLASH, BW_A, BW_BETA, BW_GAMMA, BW_N, DAMP, FC, FKIND,
+                     FRICTION_2SEP, FRICTION_STATIC, FS, GEAR, HYST, K, K1, K2, K3, L_FC,
+                     L_VEPS, L_VISC, LOAD, MU, OMEGA, QR, R_AMP, R_K, R_PHASE, RIPPLE,
+                     SHAPE, SIGMA, VEPS, VS, WSIGN, X, Z1, Z2)
+
+
+@njit(cache=True)
+def motor_friction(blk, st, w):
+    """Friction torque opposing the motor (2SEP, static map or none)."""
+    kind = blk[FKIND]
+    if kind == FRICTION_2SEP:
+        return twosep_force(st[Z1], st[Z2], w, blk[B])
+    if kind == FRICTION_STATIC:
+        return static_friction(w, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM], blk[VEPS])
+    return 0.0
+
+
+@njit(cache=True)
+def transmitted(blk, st, q, wq, theta, wtheta):
+    """Transmission torque T (Eq. 18) from motor and link positions and velocities."""
+    n = blk[GEAR]
+    return transmission_torque(q / n - theta, wq / n - wtheta, st[X], blk[MU],
+                               blk[K1], blk[K2], blk[K3], blk[DAMP], blk[BACKLASH])
+
+
+@njit(cache=True)
+def joint_forces(blk, st, q, wq, theta, wtheta):
+    """Generalised forces (motor, link) of the joint physics: -T/N - F + ripple, T - F_L."""
+    t = transmitted(blk, st, q, wq, theta, wtheta)
+    fm = -t / blk[GEAR] - motor_friction(blk, st, wq)
+    if blk[RIPPLE] != 0.0:
+        fm += ripple_torque(q, blk[R_AMP], blk[R_K], blk[R_PHASE])
+    fl = t
+    if blk[LOAD] != 0.0:
+        fl -= bearing_friction(wtheta, blk[L_FC], blk[L_VISC], blk[L_VEPS])
+    return fm, fl
+
+
+@njit(cache=True)
+def joint_advance(blk, st, q, wq, theta, wtheta, h):
+    """Advance the internal states over a step that ended at (q, theta) with velocities (wq, wtheta).
+
+    Called after MuJoCo's semi-implicit Euler update, where q_new = q_old + wq h exactly for
+    hinge and slide joints, so the step's increments are the new velocities times h.
+    """
+    if blk[FKIND] == FRICTION_2SEP:
+        z1, z2, om, qr, ws = twosep_step(st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], wq, h,
+                                         blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA],
+                                         blk[K], blk[B], blk[ASYM])
+        st[Z1] = z1
+        st[Z2] = z2
+        st[OMEGA] = om
+        st[QR] = qr
+        st[WSIGN] = ws
+    if blk[HYST] != 0.0:
+        n = blk[GEAR]
+        delta = q / n - theta
+        ddelta = (wq / n - wtheta) * h
+        de = engaged(delta, blk[BACKLASH]) - engaged(delta - ddelta, blk[BACKLASH])
+        st[X] = boucwen_step(st[X], de, blk[BW_A], blk[BW_BETA], blk[BW_GAMMA], blk[BW_N])

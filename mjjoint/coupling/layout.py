@@ -1,0 +1,55 @@
+"""Memory layouts shared by the Python side and the numba callbacks.
+
+``BLOCK``: the per-instance float64 parameter block (``d->plugin_data[instance]`` points to
+it), built once per mjData from the instance's MJCF config. ``STATE``: the instance's slice
+of ``d->plugin_state``, i.e. the internal states MuJoCo saves, restores, resets and rolls out.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..joint import JointParams
+from ..physics.stribeck import StaticFriction
+from ..physics.twosep import TwoSEP
+
+# Parameter block indices.
+(MQ, MD, LQ, LD,
+ FKIND, FC, FS, VS, SHAPE, SIGMA, K, B, ASYM, VEPS,
+ GEAR, K1, K2, K3, DAMP, BACKLASH,
+ HYST, MU, BW_A, BW_BETA, BW_GAMMA, BW_N,
+ LOAD, L_FC, L_VISC, L_VEPS,
+ RIPPLE, R_AMP, R_K, R_PHASE) = range(34)
+BLOCK_LEN = 34
+FRICTION_NONE, FRICTION_STATIC, FRICTION_2SEP = 0.0, 1.0, 2.0
+
+# Plugin state indices: the 2SEP states (twosep.Z1 ... WSIGN) then the Bouc-Wen x.
+Z1, Z2, OMEGA, QR, WSIGN, X = range(6)
+NSTATE = 6
+STATE_NAMES = ("z1", "z2", "omega", "q_r", "w_sign", "x")
+
+
+def pack(params: JointParams, motor_qpos: int, motor_dof: int, link_qpos: int, link_dof: int) -> np.ndarray:
+    """The parameter block of one plugin instance."""
+    b = np.zeros(BLOCK_LEN)
+    b[[MQ, MD, LQ, LD]] = motor_qpos, motor_dof, link_qpos, link_dof
+    f = params.friction
+    if isinstance(f, TwoSEP):
+        b[FKIND] = FRICTION_2SEP
+        b[[FC, FS, VS, SHAPE, SIGMA, K, B, ASYM]] = f.fc, f.fs, f.vs, f.shape, f.sigma, f.k, f.b, f.asym
+        b[VEPS] = 1.0
+    elif isinstance(f, StaticFriction):
+        b[FKIND] = FRICTION_STATIC
+        b[[FC, FS, VS, SHAPE, SIGMA, ASYM, VEPS]] = f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps
+    t = params.transmission
+    b[[GEAR, K1, K2, K3, DAMP, BACKLASH]] = t.gear_ratio, t.k1, t.k2, t.k3, t.damping, t.backlash
+    b[MU] = 1.0
+    if t.hysteresis is not None:
+        h = t.hysteresis
+        b[[HYST, MU, BW_A, BW_BETA, BW_GAMMA, BW_N]] = 1.0, h.mu, h.a, h.beta, h.gamma, h.n
+    if params.load_friction is not None:
+        lf = params.load_friction
+        b[[LOAD, L_FC, L_VISC, L_VEPS]] = 1.0, lf.fc, lf.viscous, lf.v_eps
+    if params.ripple is not None:
+        r = params.ripple
+        b[[RIPPLE, R_AMP, R_K, R_PHASE]] = 1.0, r.amplitude, r.harmonic, r.phase
+    return b

@@ -1,0 +1,187 @@
+"""The ``mjjoint.joint`` MuJoCo engine plugin: joint physics injected with no per-step Python.
+
+Per step, MuJoCo calls two numba ``cfunc``s of this module: ``compute`` (passive stage) adds
+the joint's torques to ``qfrc_passive``, ``advance`` (after integration) updates the internal
+friction and hysteresis states held in ``plugin_state`` — so ``mj_getState``, ``mj_setState``,
+``mj_resetData``, keyframes, ``copy.copy`` and multithreaded ``mujoco.rollout`` all carry them.
+
+Once per mjData, a Python ``init`` parses the instance's MJCF ``<config>`` with
+``JointParams.from_config`` (the validation users get everywhere else), resolves the joint
+names, and hands the callbacks a float64 parameter block through ``plugin_data``. Doing this
+part in Python keeps the parsing and its error messages in one place; it never runs per step.
+
+The callbacks read mjModel/mjData through offsets discovered at run time (``abi.offsets``),
+baked in as constants when they are compiled, once per process, at registration. The physics
+they call (``kernels``) is compiled with ``cache=True``.
+"""
+from __future__ import annotations
+
+import ctypes
+import sys
+import threading
+
+import mujoco
+import numpy as np
+from numba import cfunc, types
+
+from ..joint import JointParams, config_keys
+from . import abi
+from .kernels import joint_advance, joint_forces
+from .layout import BLOCK_LEN, LD, LQ, MD, MQ, NSTATE, pack
+from .pointers import f64_array, f64_at, f64_ptr_array, field, i32_array, u64_array
+
+PLUGIN_NAME = "mjjoint.joint"
+_MJOBJ_JOINT = int(mujoco.mjtObj.mjOBJ_JOINT)
+_SINGLE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+_lock = threading.Lock()
+_registered: dict[str, object] = {}      # keeps every callback object alive for the process
+_blocks: dict[tuple[int, int], np.ndarray] = {}  # (mjData address, instance) -> parameter block
+last_init_error: str | None = None
+
+
+def _read_config(m_addr: int, instance: int) -> dict[str, str]:
+    get = abi.libmujoco().mj_getPluginConfig
+    get.restype = ctypes.c_char_p
+    get.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p]
+    cfg = {}
+    for key in config_keys():
+        raw = get(m_addr, instance, key.encode())
+        if raw:
+            cfg[key] = raw.decode()
+    return cfg
+
+
+def _joint_addresses(m_addr: int, name: str) -> tuple[int, int]:
+    lib = abi.libmujoco()
+    lib.mj_name2id.restype = ctypes.c_int
+    lib.mj_name2id.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p]
+    jid = lib.mj_name2id(m_addr, _MJOBJ_JOINT, name.encode())
+    if jid < 0:
+        raise ValueError(f"joint {name!r} named in the mjjoint.joint config does not exist in the model")
+    off = abi.offsets()
+    jtype = ctypes.c_int.from_address(abi._read_u64(m_addr + off.m_jnt_type) + 4 * jid).value
+    if jtype not in _SINGLE_DOF:
+        raise ValueError(f"joint {name!r} must be a hinge or slide joint for mjjoint.joint")
+    qpos = ctypes.c_int.from_address(abi._read_u64(m_addr + off.m_jnt_qposadr) + 4 * jid).value
+    dof = ctypes.c_int.from_address(abi._read_u64(m_addr + off.m_jnt_dofadr) + 4 * jid).value
+    return qpos, dof
+
+
+def block_for(m_addr: int, instance: int) -> np.ndarray:
+    """Parse, validate and pack one instance's config (raises ``ValueError`` on bad input)."""
+    params = JointParams.from_config(_read_config(m_addr, instance))
+    mq, md = _joint_addresses(m_addr, params.motor_joint)
+    lq, ld = _joint_addresses(m_addr, params.link_joint)
+    return pack(params, mq, md, lq, ld)
+
+
+def _set_plugin_data(d_addr: int, instance: int, value: int) -> None:
+    slots = abi._read_u64(d_addr + abi.offsets().d_plugin_data)
+    ctypes.c_uint64.from_address(slots + 8 * instance).value = value
+
+
+def _init(m_addr, d_addr, instance):
+    global last_init_error
+    try:
+        blk = block_for(m_addr, instance)
+    except Exception as exc:  # noqa: BLE001 - a C caller cannot take a Python exception
+        last_init_error = str(exc)
+        print(f"mjjoint: {exc}", file=sys.stderr)
+        return -1
+    with _lock:
+        _blocks[(d_addr, instance)] = blk
+    _set_plugin_data(d_addr, instance, blk.ctypes.data)
+    return 0
+
+
+def _destroy(d_addr, instance):
+    with _lock:
+        _blocks.pop((d_addr, instance), None)
+
+
+def _copy(dest_addr, m_addr, src_addr, instance):
+    with _lock:
+        blk = _blocks[(src_addr, instance)].copy()
+        _blocks[(dest_addr, instance)] = blk
+    _set_plugin_data(dest_addr, instance, blk.ctypes.data)
+
+
+def _compile_hot_callbacks(off: abi.Offsets):
+    """numba cfuncs for nstate, reset, compute and advance, with the offsets baked in."""
+    d_qpos, d_qvel, d_frc = off.d_qpos, off.d_qvel, off.d_qfrc_passive
+    d_state, d_data = off.d_plugin_state, off.d_plugin_data
+    m_stateadr, m_dt = off.m_plugin_stateadr, off.m_timestep
+
+    @cfunc(types.int32(types.voidptr, types.int32))
+    def nstate(m, instance):
+        return NSTATE
+
+    @cfunc(types.void(types.voidptr, types.voidptr, types.voidptr, types.int32))
+    def reset(m, plugin_state, plugin_data, instance):
+        st = f64_ptr_array(plugin_state, NSTATE)
+        for i in range(NSTATE):
+            st[i] = 0.0
+
+    @cfunc(types.void(types.voidptr, types.voidptr, types.int32, types.int32))
+    def compute(m, d, instance, capability):
+        blk = f64_array(u64_array(field(d, d_data), instance + 1)[instance], BLOCK_LEN)
+        adr = i32_array(field(m, m_stateadr), instance + 1)[instance]
+        st = f64_array(field(d, d_state) + 8 * adr, NSTATE)
+        qpos = f64_array(field(d, d_qpos), int(max(blk[MQ], blk[LQ])) + 1)
+        qvel = f64_array(field(d, d_qvel), int(max(blk[MD], blk[LD])) + 1)
+        frc = f64_array(field(d, d_frc), int(max(blk[MD], blk[LD])) + 1)
+        md, ld = int(blk[MD]), int(blk[LD])
+        fm, fl = joint_forces(blk, st, qpos[int(blk[MQ])], qvel[md], qpos[int(blk[LQ])], qvel[ld])
+        frc[md] += fm
+        frc[ld] += fl
+
+    @cfunc(types.void(types.voidptr, types.voidptr, types.int32))
+    def advance(m, d, instance):
+        blk = f64_array(u64_array(field(d, d_data), instance + 1)[instance], BLOCK_LEN)
+        adr = i32_array(field(m, m_stateadr), instance + 1)[instance]
+        st = f64_array(field(d, d_state) + 8 * adr, NSTATE)
+        qpos = f64_array(field(d, d_qpos), int(max(blk[MQ], blk[LQ])) + 1)
+        qvel = f64_array(field(d, d_qvel), int(max(blk[MD], blk[LD])) + 1)
+        joint_advance(blk, st, qpos[int(blk[MQ])], qvel[int(blk[MD])], qpos[int(blk[LQ])],
+                      qvel[int(blk[LD])], f64_at(m, m_dt))
+
+    return nstate, reset, compute, advance
+
+
+_INIT = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
+_DESTROY = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int)
+_COPY = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
+
+
+def register() -> None:
+    """Register ``mjjoint.joint`` with MuJoCo (idempotent; call before compiling a model)."""
+    with _lock:
+        if PLUGIN_NAME in _registered:
+            return
+        off = abi.offsets()
+        nstate, reset, compute, advance = _compile_hot_callbacks(off)
+        keys = config_keys()
+        attrs = (ctypes.c_char_p * len(keys))(*[k.encode() for k in keys])
+        plugin = abi.MjpPlugin()
+        lib = abi.libmujoco()
+        lib.mjp_defaultPlugin(ctypes.byref(plugin))
+        plugin.name = PLUGIN_NAME.encode()
+        plugin.nattribute = len(keys)
+        plugin.attributes = attrs
+        plugin.capabilityflags = int(mujoco.mjtPluginCapabilityBit.mjPLUGIN_PASSIVE)
+        init_cb, destroy_cb, copy_cb = _INIT(_init), _DESTROY(_destroy), _COPY(_copy)
+        plugin.nstate = nstate.address
+        plugin.reset = reset.address
+        plugin.compute = compute.address
+        plugin.advance = advance.address
+        plugin.init = ctypes.cast(init_cb, ctypes.c_void_p).value
+        plugin.destroy = ctypes.cast(destroy_cb, ctypes.c_void_p).value
+        plugin.copy = ctypes.cast(copy_cb, ctypes.c_void_p).value
+        lib.mjp_registerPlugin.restype = ctypes.c_int
+        slot = lib.mjp_registerPlugin(ctypes.byref(plugin))
+        if slot < 0:
+            raise RuntimeError(f"MuJoCo refused to register plugin {PLUGIN_NAME!r}")
+        # MuJoCo keeps raw pointers to all of these: they must live as long as the process.
+        _registered[PLUGIN_NAME] = (plugin, attrs, keys, nstate, reset, compute, advance,
+                                    init_cb, destroy_cb, copy_cb)

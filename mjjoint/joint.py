@@ -1,0 +1,167 @@
+"""The complete parameter set of one elastic joint, and its MJCF ``<config>`` form.
+
+A joint is the chapter's topology (Fig. 1, Fig. 7): motor friction, transmission (stiffness,
+hysteresis, damping, backlash), load bearing friction, and optionally a motor torque ripple.
+Each term can be switched off (``None``). The MJCF plugin instance carries exactly these
+values as flat config keys ``<section>`` (the term's kind, or ``none``) and
+``<section>.<field>``; ``JointParams.to_config``/``from_config`` convert both ways, and the
+plugin's init parses the config with the same code, so the MJCF is the model.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from .params import check, fields_dict
+from .physics.boucwen import BoucWen
+from .physics.load import LoadFriction
+from .physics.ripple import TorqueRipple
+from .physics.stribeck import StaticFriction
+from .physics.transmission import Transmission
+from .physics.twosep import TwoSEP
+
+# section -> {kind name: class}; the kind is what the MJCF says, e.g. friction="2sep".
+SECTIONS: dict[str, dict[str, type]] = {
+    "friction": {"2sep": TwoSEP, "static": StaticFriction},
+    "transmission": {"spring": Transmission},
+    "hysteresis": {"boucwen": BoucWen},
+    "load_friction": {"bearing": LoadFriction},
+    "ripple": {"sine": TorqueRipple},
+}
+REQUIRED = ("transmission",)
+
+
+@dataclass(frozen=True)
+class JointParams:
+    """All physics of one joint injected by the plugin (see the module docstring)."""
+
+    motor_joint: str = "motor"
+    link_joint: str = "link"
+    friction: TwoSEP | StaticFriction | None = TwoSEP()
+    transmission: Transmission = Transmission()
+    load_friction: LoadFriction | None = LoadFriction()
+    ripple: TorqueRipple | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("motor_joint", "link_joint"):
+            if not isinstance(getattr(self, name), str) or not getattr(self, name):
+                raise ValueError(f"{name}={getattr(self, name)!r} must be a non-empty joint name")
+        if self.motor_joint == self.link_joint:
+            raise ValueError(f"motor_joint and link_joint are both {self.motor_joint!r}; they must differ")
+
+    @property
+    def gear_ratio(self) -> float:
+        return self.transmission.gear_ratio
+
+    def replace(self, **changes) -> "JointParams":
+        return dataclasses.replace(self, **changes)
+
+    # ---- MJCF config form -------------------------------------------------------------
+    def to_config(self) -> dict[str, str]:
+        """Flat string config for ``<plugin><instance><config key= value=/>``."""
+        cfg = {"motor_joint": self.motor_joint, "link_joint": self.link_joint}
+        for section, term in self._terms().items():
+            cfg[section] = _kind_of(section, term)
+            if term is not None:
+                for key, value in fields_dict(term).items():
+                    if not dataclasses.is_dataclass(value) and value is not None:
+                        cfg[f"{section}.{key}"] = repr(float(value))
+        return cfg
+
+    @classmethod
+    def from_config(cls, cfg: dict[str, str]) -> "JointParams":
+        """Inverse of ``to_config``; missing fields take their defaults, unknown keys fail."""
+        unknown = sorted(set(cfg) - set(config_keys()))
+        if unknown:
+            raise ValueError(f"unknown config key {unknown[0]!r} (allowed: {', '.join(config_keys())})")
+        terms = {}
+        for section, kinds in SECTIONS.items():
+            kind = cfg.get(section, "")
+            values = {k.split(".", 1)[1]: v for k, v in cfg.items() if k.startswith(section + ".") and v != ""}
+            if kind in ("", "none") and section not in REQUIRED:
+                if kind == "" and not values:
+                    terms[section] = _DEFAULT_OFF.get(section, _default_term(section))
+                    continue
+                if kind == "none":
+                    terms[section] = None
+                    continue
+                kind = next(iter(kinds))
+            elif kind == "":
+                kind = next(iter(kinds))
+            if kind not in kinds:
+                raise ValueError(f"{section}={kind!r} is not a known kind (allowed: none, {', '.join(kinds)})")
+            klass = kinds[kind]
+            names = {f.name for f in dataclasses.fields(klass)}
+            bad = sorted(set(values) - names)
+            if bad:
+                raise ValueError(f"config key {section}.{bad[0]} does not apply to {section}={kind} "
+                                 f"(allowed: {', '.join(sorted(names))})")
+            try:
+                parsed = {k: float(v) for k, v in values.items()}
+            except ValueError:
+                k = next(k for k, v in values.items() if not _is_float(v))
+                raise ValueError(f"{section}.{k}={values[k]!r} is not a number") from None
+            terms[section] = klass(**parsed)
+        hysteresis = terms.pop("hysteresis")
+        transmission = dataclasses.replace(terms.pop("transmission"), hysteresis=hysteresis)
+        return cls(motor_joint=cfg.get("motor_joint", "motor"), link_joint=cfg.get("link_joint", "link"),
+                   transmission=transmission, **terms)
+
+    def _terms(self) -> dict[str, object]:
+        return {"friction": self.friction, "transmission": self.transmission,
+                "hysteresis": self.transmission.hysteresis, "load_friction": self.load_friction,
+                "ripple": self.ripple}
+
+
+def _is_float(v: str) -> bool:
+    try:
+        float(v)
+        return True
+    except ValueError:
+        return False
+
+
+def _kind_of(section: str, term: object) -> str:
+    if term is None:
+        return "none"
+    return next(k for k, c in SECTIONS[section].items() if isinstance(term, c))
+
+
+def _default_term(section: str):
+    return next(iter(SECTIONS[section].values()))()
+
+
+# Terms that are absent when the MJCF says nothing about them (the chapter assumes no ripple).
+_DEFAULT_OFF = {"ripple": None}
+
+
+def config_keys() -> tuple[str, ...]:
+    """Every config attribute the plugin declares to MuJoCo."""
+    keys = ["motor_joint", "link_joint"]
+    for section, kinds in SECTIONS.items():
+        keys.append(section)
+        names: list[str] = []
+        for klass in kinds.values():
+            names += [f.name for f in dataclasses.fields(klass)
+                      if f.name not in names and f.name != "hysteresis"]
+        keys += [f"{section}.{n}" for n in names]
+    return tuple(keys)
+
+
+def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: float) -> float:
+    """Largest timestep at which the explicitly injected stiffnesses stay stable (w h < 1.5).
+
+    The plugin's forces are explicit in MuJoCo's integrator, so each stiffness s acting on an
+    inertia J needs sqrt(s/J) h below the semi-implicit Euler limit of 2; 1.5 leaves margin.
+    """
+    check("motor_inertia", motor_inertia, 0.0, lo_open=True)
+    check("link_inertia", link_inertia, 0.0, lo_open=True)
+    tr = params.transmission
+    n = tr.gear_ratio
+    k_max = tr.k1 + 2 * tr.k2 * 0.01 + 3 * tr.k3 * 0.01 ** 2  # tangent stiffness at 10 mrad
+    j_red = 1.0 / (1.0 / link_inertia + 1.0 / (motor_inertia * n * n))
+    rates = [(k_max / j_red) ** 0.5]
+    if isinstance(params.friction, TwoSEP):
+        f = params.friction
+        rates.append((2 * (f.fs + abs(f.asym)) * f.k / motor_inertia) ** 0.5)
+    return 1.5 / max(rates)

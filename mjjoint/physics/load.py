@@ -1,0 +1,36 @@
+"""Load side: bearing friction F_c sgn(theta') + d_f theta' (Sec. 2.3).
+
+Gravity G = l g sin(theta) (Eq. 9) and link flexibility are not written here: they come from
+the MJCF bodies (link mass, lever, flexible segments) through MuJoCo's multibody dynamics.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from numba import njit
+
+from ..params import check
+
+
+@njit(cache=True)
+def bearing_friction(w: float, fc: float, viscous: float, v_eps: float) -> float:
+    """F_c tanh(w / v_eps) + d_f w: the smoothed sign keeps the ODE Lipschitz at w = 0."""
+    return fc * math.tanh(w / v_eps) + viscous * w
+
+
+@dataclass(frozen=True)
+class LoadFriction:
+    """Output bearing friction, link side: N·m and N·m·s/rad."""
+
+    fc: float = 0.5        # [N·m]: cross-roller output bearing, catalogue order for size 20
+    viscous: float = 0.05  # d_f [N·m·s/rad]
+    v_eps: float = 1e-3    # [rad/s]: sign regularisation, below the 20-bit encoder's 6e-6 rad/ms
+
+    def __post_init__(self) -> None:
+        check("fc", self.fc, 0.0)
+        check("viscous", self.viscous, 0.0)
+        check("v_eps", self.v_eps, 0.0, lo_open=True)
+
+    def __call__(self, w: float) -> float:
+        return bearing_friction(w, self.fc, self.viscous, self.v_eps)

@@ -1,0 +1,72 @@
+"""Static friction maps: Coulomb, viscous and the Stribeck curve (Ruderman 2012, Eq. 15).
+
+``StaticFriction`` is the simple alternative to 2SEP: a memoryless map of velocity whose sign
+is regularised by ``tanh(w / v_eps)`` so that MuJoCo integrates it without chattering.
+Coulomb-only and viscous-only friction are special cases (see the constructors).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from numba import njit
+
+from ..params import check
+
+
+@njit(cache=True)
+def stribeck_level(w: float, fc: float, fs: float, vs: float, shape: float) -> float:
+    """Magnitude of the Stribeck curve: Fc + (Fs - Fc) exp(-|w/Vs|^shape) (Eq. 15 without sign)."""
+    return fc + (fs - fc) * math.exp(-abs(w / vs) ** shape)
+
+
+@njit(cache=True)
+def steady_state(w: float, fc: float, fs: float, vs: float, shape: float, sigma: float,
+                 asym: float) -> float:
+    """S(w) = s(w) + sigma w (Eqs. 14-15); ``asym`` shifts both levels in the direction of motion."""
+    sg = 1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0)
+    return sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * w
+
+
+@njit(cache=True)
+def static_friction(w: float, fc: float, fs: float, vs: float, shape: float, sigma: float,
+                    asym: float, v_eps: float) -> float:
+    """Regularised static map: tanh(w/v_eps) replaces sgn(w) in S(w)."""
+    sg = math.tanh(w / v_eps)
+    return sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * w
+
+
+@dataclass(frozen=True)
+class StaticFriction:
+    """Memoryless motor friction F(w) = sgn_eps(w)(Fc + (Fs-Fc) e^{-|w/Vs|^shape}) + sigma w.
+
+    Units are motor side: torques in N·m, velocities in rad/s.
+    """
+
+    fc: float = 0.08      # Coulomb level; same default as TwoSEP.fc
+    fs: float = 0.12      # break-away level; same default as TwoSEP.fs
+    vs: float = 0.5       # Stribeck velocity; same default as TwoSEP.vs
+    shape: float = 1.0    # Stribeck shape factor; same default as TwoSEP.shape
+    sigma: float = 2e-4   # viscous coefficient; same default as TwoSEP.sigma
+    asym: float = 0.0     # direction-dependent shift of both levels (friction asymmetry)
+    v_eps: float = 1e-3   # sign regularisation velocity: 1/500 of vs, well below any sliding speed
+
+    def __post_init__(self) -> None:
+        check("fc", self.fc, 0.0)
+        check("fs", self.fs, 0.0)
+        check("vs", self.vs, 0.0, lo_open=True)
+        check("shape", self.shape, 0.1, 5.0)
+        check("sigma", self.sigma, 0.0)
+        check("asym", self.asym, -self.fc, self.fc)
+        check("v_eps", self.v_eps, 0.0, lo_open=True)
+
+    @classmethod
+    def coulomb(cls, fc: float, v_eps: float = 1e-3) -> "StaticFriction":
+        return cls(fc=fc, fs=fc, sigma=0.0, v_eps=v_eps)
+
+    @classmethod
+    def viscous(cls, sigma: float) -> "StaticFriction":
+        return cls(fc=0.0, fs=0.0, sigma=sigma)
+
+    def __call__(self, w: float) -> float:
+        return static_friction(w, self.fc, self.fs, self.vs, self.shape, self.sigma, self.asym, self.v_eps)

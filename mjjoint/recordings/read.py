@@ -1,0 +1,119 @@
+"""`read_recording`: load a .csv, .npz or .mat file, map and scale its columns, check them."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from .columns import check_column_map, check_scales, expand_scales, resolve_columns, split_joint
+from .csv_io import read_csv_table
+from .errors import RecordingError, listing
+from .mat_io import read_mat_table
+from .model import MultiRecording, Recording
+from .npz_io import read_npz_table
+from .validate import Context, check_signals
+
+
+class _Table(Protocol):
+    kind: str  # "column" or "variable", for messages
+    strict: bool  # whether a name the mapping does not use is an error
+    lines: Sequence[int] | None
+    names: tuple[str, ...]
+
+    def column(self, name: str, role: str) -> np.ndarray: ...
+
+
+_LOADERS: dict[str, Callable[[Path], _Table]] = {
+    ".csv": read_csv_table,
+    ".npz": read_npz_table,
+    ".mat": read_mat_table,
+}
+
+
+def _positive(name: str, value: float | None) -> float | None:
+    if value is None:
+        return None
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise RecordingError(f"{name} must be a number, got {value!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise RecordingError(f"{name} must be finite and positive, got {value!r}")
+    return value
+
+
+def read_recording(
+    path: str | Path,
+    columns: Mapping[str, str] | None = None,
+    scales: Mapping[str, float] | None = None,
+    gear_ratio: float | None = None,
+    k_m: float | None = None,
+    *,
+    allow_extra: bool = False,
+) -> Recording | MultiRecording:
+    """Read a recording and return it in canonical names and SI units.
+
+    columns: canonical name -> name in the file (see parse_column_map); unmapped signals
+    are looked up under their canonical name. scales: canonical name -> multiplier
+    (see parse_scales). k_m: torque constant [N·m/A]; when given, the u column holds a
+    current and u = k_m * i. allow_extra: accept CSV columns that no signal uses.
+    Several joints (u1, q1, theta1, ...) give a MultiRecording. Raises RecordingError.
+    """
+    where, path = str(path), Path(path)
+    columns = check_column_map(columns or {})
+    scales = check_scales(scales or {})
+    gear_ratio, k_m = _positive("gear_ratio", gear_ratio), _positive("k_m", k_m)
+    if not path.exists():
+        raise RecordingError(f"{where}: no such file")
+    if not path.is_file():
+        raise RecordingError(f"{where}: not a regular file")
+    loader = _LOADERS.get(path.suffix.lower())
+    if loader is None:
+        raise RecordingError(f"{where}: unsupported file type {path.suffix!r}; expected {', '.join(_LOADERS)}")
+    if path.stat().st_size == 0:
+        raise RecordingError(f"{where}: empty file")
+
+    table = loader(path)
+    sources = resolve_columns(table.names, columns, where, table.kind)
+    if table.strict and not allow_extra:
+        extra = [name for name in table.names if name not in sources.values()]
+        if extra:
+            allowed = sorted(set(sources.values()), key=list(table.names).index)
+            raise RecordingError(
+                f"{where}: unknown column(s) {listing(extra)}; allowed: t, u, q, theta, tau "
+                f"(here: {', '.join(allowed)}); map them with --columns or pass allow_extra=True"
+            )
+    factors = expand_scales(scales, sources, where)
+    signals = {}
+    for name, source in sources.items():
+        x = table.column(source, name) * factors.get(name, 1.0)
+        signals[name] = x * k_m if k_m is not None and split_joint(name)[0] == "u" else x
+    check_signals(signals, Context(where, sources, table.lines))
+
+    meta = {"source": where, "format": path.suffix.lower()[1:], "columns": sources, "scales": factors, "k_m": k_m}
+    return _build(signals, gear_ratio, meta)
+
+
+def _build(signals: dict[str, np.ndarray], gear_ratio: float | None, meta: dict[str, Any]) -> Recording | MultiRecording:
+    if "u" in signals:
+        return Recording(**signals, gear_ratio=gear_ratio, meta=meta)
+    joints = sorted({j for name in signals if (j := split_joint(name)[1]) is not None})
+    return MultiRecording(
+        tuple(
+            Recording(
+                t=signals["t"],
+                u=signals[f"u{j}"],
+                q=signals[f"q{j}"],
+                theta=signals[f"theta{j}"],
+                tau=signals.get(f"tau{j}"),
+                gear_ratio=gear_ratio,
+                meta={**meta, "joint": j},
+            )
+            for j in joints
+        ),
+        meta=meta,
+    )
