@@ -29,14 +29,17 @@ SECTIONS: dict[str, dict[str, type]] = {
     "ripple": {"sine": TorqueRipple},
 }
 REQUIRED = ("transmission",)
+# A joint name meaning "fixed to the world": cuts that side free of motion (locked output,
+# Fig. 11; or a spring to ground, Fig. 4).
+GROUND = "world"
 
 
 @dataclass(frozen=True)
 class JointParams:
     """All physics of one joint injected by the plugin (see the module docstring)."""
 
-    motor_joint: str = "motor"
-    link_joint: str = "link"
+    motor_joint: str = "motor"   # joint of the rotor (q), or "world" for a fixed input
+    link_joint: str = "link"     # joint of the gear output (theta), or "world" for a locked output
     friction: TwoSEP | StaticFriction | None = TwoSEP()
     transmission: Transmission = Transmission()
     load_friction: LoadFriction | None = LoadFriction()

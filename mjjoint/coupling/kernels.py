@@ -6,6 +6,7 @@ energy, tests) evaluate the very functions the plugin runs.
 """
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from ..physics.boucwen import boucwen_step
@@ -74,3 +75,18 @@ def joint_advance(blk, st, q, wq, theta, wtheta, h):
         ddelta = (wq / n - wtheta) * h
         de = engaged(delta, blk[BACKLASH]) - engaged(delta - ddelta, blk[BACKLASH])
         st[X] = boucwen_step(st[X], de, blk[BW_A], blk[BW_BETA], blk[BW_GAMMA], blk[BW_N])
+
+
+@njit(cache=True)
+def joint_traces(blk, states, q, wq, theta, wtheta):
+    """Transmission torque, motor friction and load friction along a trajectory."""
+    n = q.shape[0]
+    tau = np.empty(n)
+    fric = np.empty(n)
+    load = np.empty(n)
+    for i in range(n):
+        st = states[i]
+        tau[i] = transmitted(blk, st, q[i], wq[i], theta[i], wtheta[i])
+        fric[i] = motor_friction(blk, st, wq[i])
+        load[i] = bearing_friction(wtheta[i], blk[L_FC], blk[L_VISC], blk[L_VEPS]) if blk[LOAD] != 0.0 else 0.0
+    return tau, fric, load

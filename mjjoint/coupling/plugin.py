@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 from numba import cfunc, types
 
-from ..joint import JointParams, config_keys
+from ..joint import GROUND, JointParams, config_keys
 from . import abi
 from .kernels import joint_advance, joint_forces
 from .layout import BLOCK_LEN, LD, LQ, MD, MQ, NSTATE, pack
@@ -53,6 +53,8 @@ def _read_config(m_addr: int, instance: int) -> dict[str, str]:
 
 
 def _joint_addresses(m_addr: int, name: str) -> tuple[int, int]:
+    if name == GROUND:
+        return -1, -1
     lib = abi.libmujoco()
     lib.mj_name2id.restype = ctypes.c_int
     lib.mj_name2id.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p]
@@ -131,10 +133,13 @@ def _compile_hot_callbacks(off: abi.Offsets):
         qpos = f64_array(field(d, d_qpos), int(max(blk[MQ], blk[LQ])) + 1)
         qvel = f64_array(field(d, d_qvel), int(max(blk[MD], blk[LD])) + 1)
         frc = f64_array(field(d, d_frc), int(max(blk[MD], blk[LD])) + 1)
-        md, ld = int(blk[MD]), int(blk[LD])
-        fm, fl = joint_forces(blk, st, qpos[int(blk[MQ])], qvel[md], qpos[int(blk[LQ])], qvel[ld])
-        frc[md] += fm
-        frc[ld] += fl
+        mq, md, lq, ld = int(blk[MQ]), int(blk[MD]), int(blk[LQ]), int(blk[LD])
+        fm, fl = joint_forces(blk, st, qpos[mq] if mq >= 0 else 0.0, qvel[md] if md >= 0 else 0.0,
+                              qpos[lq] if lq >= 0 else 0.0, qvel[ld] if ld >= 0 else 0.0)
+        if md >= 0:
+            frc[md] += fm
+        if ld >= 0:
+            frc[ld] += fl
 
     @cfunc(types.void(types.voidptr, types.voidptr, types.int32))
     def advance(m, d, instance):
@@ -143,8 +148,9 @@ def _compile_hot_callbacks(off: abi.Offsets):
         st = f64_array(field(d, d_state) + 8 * adr, NSTATE)
         qpos = f64_array(field(d, d_qpos), int(max(blk[MQ], blk[LQ])) + 1)
         qvel = f64_array(field(d, d_qvel), int(max(blk[MD], blk[LD])) + 1)
-        joint_advance(blk, st, qpos[int(blk[MQ])], qvel[int(blk[MD])], qpos[int(blk[LQ])],
-                      qvel[int(blk[LD])], f64_at(m, m_dt))
+        mq, md, lq, ld = int(blk[MQ]), int(blk[MD]), int(blk[LQ]), int(blk[LD])
+        joint_advance(blk, st, qpos[mq] if mq >= 0 else 0.0, qvel[md] if md >= 0 else 0.0,
+                      qpos[lq] if lq >= 0 else 0.0, qvel[ld] if ld >= 0 else 0.0, f64_at(m, m_dt))
 
     return nstate, reset, compute, advance
 

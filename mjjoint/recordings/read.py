@@ -9,7 +9,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .columns import check_column_map, check_scales, expand_scales, resolve_columns, split_joint
+from .columns import ALLOWED, check_column_map, check_scales, expand_scales, resolve_columns, split_joint
 from .csv_io import read_csv_table
 from .errors import RecordingError, listing
 from .mat_io import read_mat_table
@@ -79,19 +79,20 @@ def read_recording(
 
     table = loader(path)
     sources = resolve_columns(table.names, columns, where, table.kind)
-    if table.strict and not allow_extra:
-        extra = [name for name in table.names if name not in sources.values()]
-        if extra:
-            allowed = sorted(set(sources.values()), key=list(table.names).index)
-            raise RecordingError(
-                f"{where}: unknown column(s) {listing(extra)}; allowed: t, u, q, theta, tau "
-                f"(here: {', '.join(allowed)}); map them with --columns or pass allow_extra=True"
-            )
     factors = expand_scales(scales, sources, where)
     signals = {}
     for name, source in sources.items():
         x = table.column(source, name) * factors.get(name, 1.0)
         signals[name] = x * k_m if k_m is not None and split_joint(name)[0] == "u" else x
+    # After the lookups above, so that a mistyped mapping is reported as such, not as an unused column.
+    if table.strict and not allow_extra:
+        extra = [name for name in table.names if name not in sources.values()]
+        if extra:
+            mapped = f", and the mapped names {listing(columns.values())}" if columns else ""
+            raise RecordingError(
+                f"{where}: unknown column(s) {listing(extra)}; allowed: {ALLOWED}{mapped}; "
+                "map them with --columns or pass allow_extra=True to ignore them"
+            )
     check_signals(signals, Context(where, sources, table.lines))
 
     meta = {"source": where, "format": path.suffix.lower()[1:], "columns": sources, "scales": factors, "k_m": k_m}

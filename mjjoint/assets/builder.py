@@ -1,0 +1,147 @@
+"""Variants of the shipped single-joint arm, built with MuJoCo's own ``MjSpec``.
+
+The commented ``assets/mjcf/elastic_joint.xml`` is the source of truth; ``build_arm`` loads
+it and changes only what an ``ArmSpec`` or ``JointParams`` says, so every variant keeps the
+asset's classes, sensors and keyframe. MjSpec (not dm_control.mjcf) because it round-trips
+``<extension><plugin>`` configs and compiles in-process without an XML detour.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from ..coupling.plugin import PLUGIN_NAME, register
+from ..joint import JointParams
+from ..params import check
+
+ASSETS_DIR = Path(os.environ.get("MJJOINT_ASSETS", Path(__file__).resolve().parents[2] / "assets" / "mjcf"))
+ARM_XML = "elastic_joint.xml"
+
+
+def scene_path(name: str = "scene.xml") -> Path:
+    path = ASSETS_DIR / name
+    if not path.exists():
+        raise FileNotFoundError(f"MJCF asset {path} not found (set MJJOINT_ASSETS to the assets/mjcf folder)")
+    return path
+
+
+@dataclass(frozen=True)
+class ArmSpec:
+    """Body-level parameters of the arm; defaults equal the shipped XML (see its comments)."""
+
+    segments: int = 4               # flexible rod segments (Fig. 5 (b)); 0 = rigid rod
+    rod_length: float = 0.4         # [m]
+    rod_mass: float = 0.34          # [kg], aluminium d = 20 mm
+    rod_ei: float = 550.0           # bending stiffness EI [N m^2]
+    segment_damping: float = 0.5    # [N m s/rad] per segment hinge
+    segment_armature: float = 1e-3  # [kg m^2] regularises the rod's unresolved high modes
+    tip_mass: float = 1.0           # [kg] adjustable weight at the rod end
+    motor_inertia: float = 5e-5     # [kg m^2] rotor + coupling + wave generator
+    hub_inertia: float = 2e-3       # [kg m^2]
+    k_m: float = 0.25               # motor torque constant [N m/A]
+    gravity: bool = True
+    input_delay: float = 0.0        # [s] current-to-torque delay (native actuator delay)
+    timestep: float = 5e-4          # [s]
+
+    def __post_init__(self) -> None:
+        if int(self.segments) != self.segments or not 0 <= self.segments <= 20:
+            raise ValueError(f"segments={self.segments!r} is outside the allowed range [0, 20] (integer)")
+        check("rod_length", self.rod_length, 0.0, 5.0, lo_open=True)
+        check("rod_mass", self.rod_mass, 0.0, 100.0, lo_open=True)
+        check("rod_ei", self.rod_ei, 0.0, lo_open=True)
+        check("segment_damping", self.segment_damping, 0.0)
+        check("segment_armature", self.segment_armature, 0.0)
+        check("tip_mass", self.tip_mass, 0.0, 1000.0)
+        check("motor_inertia", self.motor_inertia, 0.0, lo_open=True)
+        check("hub_inertia", self.hub_inertia, 0.0, lo_open=True)
+        check("k_m", self.k_m, 0.0, lo_open=True)
+        check("timestep", self.timestep, 1e-6, 0.01)
+        check("input_delay", self.input_delay, 0.0, 0.1)
+
+    @property
+    def link_inertia(self) -> float:
+        """Rigid-link inertia about the hub [kg m^2] (for stability estimates)."""
+        return self.hub_inertia + self.rod_mass * self.rod_length ** 2 / 3 + self.tip_mass * self.rod_length ** 2
+
+
+def _rebuild_rod(spec: mujoco.MjSpec, arm: ArmSpec) -> None:
+    hub = spec.body("hub")
+    old = spec.body("segment1")
+    if old is not None:
+        spec.delete(old)
+    seg_default = spec.find_default("segment")
+    n = max(arm.segments, 1)
+    length = arm.rod_length / n
+    parent = hub
+    for i in range(1, n + 1):
+        body = parent.add_body(name=f"segment{i}", pos=[0, 0, 0 if i == 1 else -length])
+        body.classname = seg_default
+        if arm.segments > 0:
+            joint = body.add_joint(name=f"flex{i}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0])
+            joint.classname = seg_default
+            joint.stiffness[0] = arm.rod_ei * n / arm.rod_length
+            joint.damping[0] = arm.segment_damping
+            joint.armature = arm.segment_armature
+        geom = body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.01, 0, 0],
+                             fromto=[0, 0, 0, 0, 0, -length], mass=arm.rod_mass / n)
+        geom.classname = seg_default
+        parent = body
+    tip = parent.add_body(name="tip", pos=[0, 0, -length])
+    tip.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.031, 0, 0], mass=arm.tip_mass,
+                 rgba=[0.8, 0.3, 0.2, 1], contype=0, conaffinity=0, group=1)
+    tip.add_site(name="tip", size=[0.005, 0, 0])
+
+
+def build_arm(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), *,
+              scene: bool = True) -> mujoco.MjSpec:
+    """An ``MjSpec`` of the arm with these body and joint parameters (not yet compiled)."""
+    register()
+    spec = mujoco.MjSpec.from_file(str(scene_path("scene.xml" if scene else ARM_XML)))
+    plugin = next(p for p in spec.plugins if p.plugin_name == PLUGIN_NAME)
+    plugin.config = joint.to_config()
+    spec.option.timestep = arm.timestep
+    if not arm.gravity:
+        spec.option.gravity = [0.0, 0.0, 0.0]
+    rotor = spec.body("rotor")
+    rotor.inertia = [4e-4, arm.motor_inertia, 4e-4]
+    spec.body("hub").inertia = [arm.hub_inertia] * 3
+    _rebuild_rod(spec, arm)
+    act = spec.actuator("current")
+    act.gear[0] = arm.k_m
+    if arm.input_delay > 0:
+        act.delay = arm.input_delay
+        act.nsample = int(math.ceil(arm.input_delay / arm.timestep)) + 2
+    # The home keyframe must match the (possibly new) number of joints.
+    for key in spec.keys:
+        key.qpos = np.zeros(2 + arm.segments)
+    return spec
+
+
+def load_model(source: str | Path | mujoco.MjSpec | None = None, **kwargs) -> mujoco.MjModel:
+    """Compile a model from an MJCF path, an ``MjSpec``, or (``None``) the default arm.
+
+    Every ``mjjoint.joint`` instance's config is validated here, so a bad value fails with
+    a one-line ``ValueError`` naming it instead of a MuJoCo plugin-init failure.
+    """
+    register()
+    if source is None:
+        spec = build_arm(**kwargs)
+    elif isinstance(source, mujoco.MjSpec):
+        spec = source
+    else:
+        path = Path(source)
+        if not path.exists():
+            raise FileNotFoundError(f"model file {path} does not exist")
+        spec = mujoco.MjSpec.from_file(str(path))
+    for plugin in spec.plugins:
+        if plugin.plugin_name == PLUGIN_NAME:
+            try:
+                JointParams.from_config(dict(plugin.config))
+            except ValueError as exc:
+                raise ValueError(f"plugin instance {plugin.name!r}: {exc}") from None
+    return spec.compile()

@@ -1,0 +1,480 @@
+"""Locate where a simulation departs from a recording of the same experiment.
+
+The residual is r = measured - simulated. `residual_windows` says when it is large,
+`condition_scores` under which operating condition it concentrates, and `locate` does both for
+every recorded signal. The output is evidence for the step that names the missing physics.
+
+Every condition score is on one scale, the share of residual variance (energy of the mean-free
+residual) the condition accounts for, in [0, 1]:
+- concentration conditions (near velocity reversals, small |delta|): (E - T) / (1 - T), where
+  E is the residual energy share inside the condition's samples and T their time share; 0 when
+  the residual is spread evenly, 1 when all of it sits there;
+- regressions (sin/cos theta, harmonics of q, friction shapes, acceleration, delta): the
+  fraction of residual variance explained by a least-squares fit on the regressors;
+- resonance: the residual power share in a +-10 % band around the peak, minus what the measured
+  signal's spectrum (or a flat one, whichever is larger) puts in that band;
+- lag: the fraction of residual variance removed by time-shifting the simulation;
+- hysteresis: (integral r d(delta))^2 / (integral r^2 |d(delta)| * integral |d(delta)|), the
+  squared loop area of r against delta relative to the largest one this residual energy allows.
+
+Noise threshold: each score is also computed for `n_permutations` random permutations of the
+residual, which keep its values but remove any relation to time, motion or frequency. A score
+counts as significant when it exceeds both NULL_SIGMAS standard deviations above the mean of
+those null scores and `min_effect` (default 5 %). The first guards short records, where chance
+fits are large; the second guards long ones, where even an unstructured but slowly varying
+residual beats the permutations without pointing at any physics. When nothing is significant,
+the residual concentrates nowhere that was looked at.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Mapping
+
+import numpy as np
+from scipy.fft import irfft, next_fast_len, rfft
+from scipy.ndimage import uniform_filter1d
+from scipy.signal import welch
+
+from .features import sample_period
+
+REVERSAL_WINDOW_S = 0.030   # [s]: stick-slip and backlash transients last tens of ms
+SMALL_DELTA_QUANTILE = 0.2  # "small |delta|" = the 20 % of samples closest to zero deflection
+MAX_HARMONIC = 40           # cycles per motor revolution searched for position-periodic effects
+STRIBECK_SPEEDS = (0.02, 0.05, 0.1, 0.2, 0.35)  # bump widths v, as fractions of the 95th-pct |qd|
+RESONANCE_BAND = 0.1        # relative half-width of the band a resonance's power is counted in
+RESONANCE_RESOLUTION_HZ = 0.5
+MAX_LAG_S = 0.050           # [s]: larger shifts are timing faults, not missing physics
+NULL_SIGMAS = 4.0
+WINDOW_LEVEL = 0.25         # a window spans the stretch where the envelope stays above this x peak
+
+
+def nrmse(measured: np.ndarray, simulated: np.ndarray) -> float:
+    """Normalized RMS error: rms(measured - simulated) / std(measured)."""
+    m = np.asarray(measured, dtype=float)
+    s = np.asarray(simulated, dtype=float)
+    if m.shape != s.shape:
+        raise ValueError(f"measured {m.shape} and simulated {s.shape} differ in shape")
+    if m.size == 0 or not (np.all(np.isfinite(m)) and np.all(np.isfinite(s))):
+        raise ValueError("measured and simulated must be non-empty and finite")
+    sd = float(np.std(m))
+    if sd == 0.0:
+        raise ValueError("measured signal is constant (zero std): NRMSE is undefined for it")
+    return float(np.sqrt(np.mean((m - s) ** 2)) / sd)
+
+
+@dataclass(frozen=True)
+class Window:
+    """A time window [t0, t1] s holding `energy_share` of the residual energy sum(r^2)."""
+
+    t0: float
+    t1: float
+    energy_share: float
+
+
+def residual_windows(t: np.ndarray, r: np.ndarray, n_windows: int = 3, min_width: float = 0.1) -> list[Window]:
+    """Up to `n_windows` disjoint windows holding most of the residual energy, largest first.
+
+    The envelope is r^2 averaged over `min_width` seconds. Windows are picked greedily around
+    the highest free envelope peak, spanning the contiguous stretch where the envelope stays
+    above WINDOW_LEVEL x that peak, and at least `min_width` wide where free samples allow.
+    """
+    dt = sample_period(t)
+    t = np.asarray(t, dtype=float)
+    energy = np.asarray(r, dtype=float) ** 2
+    if energy.shape != t.shape:
+        raise ValueError(f"r has shape {energy.shape}, expected {t.shape} like t")
+    total = float(energy.sum())
+    if total == 0.0:
+        return []
+    half = max(int(round(min_width / dt)), 1) // 2
+    envelope = uniform_filter1d(energy, 2 * half + 1, mode="nearest")
+    free = np.ones(t.size, dtype=bool)
+    windows = []
+    for _ in range(n_windows):
+        if not free.any():
+            break
+        peak = int(np.argmax(np.where(free, envelope, -np.inf)))
+        lo, hi = _run_around(peak, free)
+        lo_hi = _run_around(peak, free & (envelope >= WINDOW_LEVEL * envelope[peak]))
+        left = max(lo, min(lo_hi[0], peak - half))
+        right = min(hi, max(lo_hi[1], peak + half))
+        free[left:right + 1] = False
+        windows.append(Window(float(t[left]), float(t[right]), float(energy[left:right + 1].sum() / total)))
+    return sorted(windows, key=lambda w: -w.energy_share)
+
+
+def _run_around(i: int, mask: np.ndarray) -> tuple[int, int]:
+    """First and last index of the run of True in `mask` containing index i."""
+    gaps = np.flatnonzero(~mask)
+    before, after = gaps[gaps < i], gaps[gaps > i]
+    return (int(before[-1]) + 1 if before.size else 0, int(after[0]) - 1 if after.size else mask.size - 1)
+
+
+@dataclass(frozen=True)
+class ConditionScore:
+    """How much of the residual concentrates under one operating condition (see module doc)."""
+
+    name: str
+    score: float
+    threshold: float  # noise threshold: score must exceed it to count
+    description: str
+    params: Mapping[str, float] = field(default_factory=dict)  # e.g. k, frequency_hz, lag_ms
+
+    @property
+    def significant(self) -> bool:
+        return self.score > self.threshold
+
+    def as_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "score": float(self.score),
+            "threshold": float(self.threshold),
+            "significant": self.significant,
+            "description": self.description,
+            "params": {k: float(v) for k, v in self.params.items()},
+        }
+
+
+@dataclass(frozen=True)
+class _Condition:
+    name: str
+    # Scores every column of R (column 0: the residual, others: its permutations), and the
+    # parameters found for column 0.
+    evaluate: Callable[[np.ndarray], tuple[np.ndarray, dict[str, float]]]
+    describe: Callable[[float, dict[str, float]], str]
+
+
+def _centered_basis(columns: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the mean-free regressors; degenerate directions dropped."""
+    b = columns - columns.mean(axis=0)
+    u, s, _ = np.linalg.svd(b, full_matrices=False)
+    if s.size == 0 or s[0] == 0.0:
+        return u[:, :0]
+    return u[:, s > 1e-9 * s[0]]
+
+
+def _explained(basis: np.ndarray, R: np.ndarray) -> np.ndarray:
+    return np.sum((basis.T @ R) ** 2, axis=0) / np.sum(R**2, axis=0)
+
+
+def _explains(score: float) -> str:
+    return f"explains {score:.0%} of residual variance"
+
+
+def _regression(name: str, regressor: np.ndarray, text: str) -> _Condition:
+    basis = _centered_basis(regressor[:, None])
+    return _Condition(name, lambda R: (_explained(basis, R), {}), lambda s, p: f"{text} ({_explains(s)})")
+
+
+def _concentration(name: str, mask: np.ndarray, text: str) -> _Condition:
+    time_share = float(mask.mean())
+
+    def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        energy = R**2
+        share = energy[mask].sum(axis=0) / energy.sum(axis=0)
+        if not 0.0 < time_share < 1.0:  # no contrast between inside and outside
+            return np.zeros(R.shape[1]), {"energy_share": float(share[0]), "time_share": time_share}
+        score = np.clip((share - time_share) / (1.0 - time_share), 0.0, 1.0)
+        return score, {"energy_share": float(share[0]), "time_share": time_share}
+
+    def describe(score: float, p: dict[str, float]) -> str:
+        return f"{text} ({p['energy_share']:.0%} of residual energy in {p['time_share']:.0%} of the time)"
+
+    return _Condition(name, evaluate, describe)
+
+
+def _periodic_in_q(q_mod: np.ndarray) -> _Condition:
+    def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        per_k = np.stack([
+            _explained(_centered_basis(np.column_stack([np.sin(k * q_mod), np.cos(k * q_mod)])), R)
+            for k in range(1, MAX_HARMONIC + 1)
+        ])
+        return per_k.max(axis=0), {"k": int(np.argmax(per_k[:, 0])) + 1}
+
+    return _Condition(
+        "periodic_q", evaluate,
+        lambda s, p: f"periodic in q at {p['k']} cycles per revolution ({_explains(s)})",
+    )
+
+
+def _stribeck(qd: np.ndarray) -> _Condition:
+    scale = float(np.percentile(np.abs(qd), 95))
+    speeds = [f * scale for f in STRIBECK_SPEEDS]
+
+    def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        per_v = np.stack([
+            _explained(_centered_basis((np.sign(qd) * np.exp(-((qd / v) ** 2)))[:, None]), R) for v in speeds
+        ])
+        return per_v.max(axis=0), {"v": speeds[int(np.argmax(per_v[:, 0]))]}
+
+    return _Condition(
+        "stribeck", evaluate,
+        lambda s, p: f"Stribeck-like bump sign(qd)*exp(-(qd/v)^2), v = {p['v']:.3g} rad/s ({_explains(s)})",
+    )
+
+
+def _hysteresis(delta_d: np.ndarray) -> _Condition:
+    weight = np.abs(delta_d)
+
+    def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        # d(delta) = delta_d dt on a uniform grid; dt cancels in the ratio.
+        area = delta_d @ R
+        bound = (weight @ R**2) * weight.sum()
+        score = np.divide(area**2, bound, out=np.zeros_like(area), where=bound > 0)
+        return score, {"direction": float(np.sign(area[0]))}
+
+    def describe(score: float, p: dict[str, float]) -> str:
+        turn = "clockwise" if p["direction"] > 0 else "counter-clockwise"
+        return f"hysteresis loop of r against delta, {turn} (area {score:.0%} of the largest for this residual)"
+
+    return _Condition("hysteresis", evaluate, describe)
+
+
+def _resonance(dt: float, measured: np.ndarray) -> _Condition:
+    fs = 1.0 / dt
+
+    def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        nperseg = min(R.shape[0], 2 ** math.ceil(math.log2(fs / RESONANCE_RESOLUTION_HZ)))
+        f, power = welch(R, fs=fs, nperseg=nperseg, axis=0)
+        _, power_m = welch(measured, fs=fs, nperseg=nperseg)
+        idx = np.arange(f.size)
+        # Band +-RESONANCE_BAND around each bin, at least +-2 bins so one bin's scatter is averaged.
+        lo = np.maximum(np.minimum(np.searchsorted(f, f * (1 - RESONANCE_BAND)), idx - 2), 0)
+        hi = np.minimum(np.maximum(np.searchsorted(f, f * (1 + RESONANCE_BAND), side="right") - 1, idx + 2), f.size - 1)
+        total = power.sum(axis=0)
+
+        def band_share(p: np.ndarray) -> np.ndarray:
+            c = np.concatenate([np.zeros((1,) + p.shape[1:]), np.cumsum(p, axis=0)])
+            return (c[hi + 1] - c[lo]) / c[-1]
+
+        # A resonance is a peak above the residual's own smooth spectrum: the median level over
+        # four band widths either side (which the peak cannot dominate) is the background, so
+        # coloured noise is not a resonance.
+        wlo, whi = np.maximum(idx - 4 * (idx - lo), 0), np.minimum(idx + 4 * (hi - idx), f.size - 1)
+        level = np.stack([np.median(power[a:b + 1], axis=0) for a, b in zip(wlo, whi)])
+        background = level * (hi - lo + 1)[:, None] / total
+        excess = band_share(power) - np.maximum(band_share(power_m)[:, None], background)
+        excess[:3] = -np.inf  # near DC is drift, not resonance
+        best = np.argmax(excess, axis=0)
+        b = int(best[0])
+        j = lo[b] + int(np.argmax(power[lo[b]:hi[b] + 1, 0]))
+        freq = f[j]
+        if 0 < j < f.size - 1:  # parabolic peak interpolation on the log spectrum
+            y0, y1, y2 = np.log(power[j - 1:j + 2, 0] + 1e-300)
+            curv = y0 - 2 * y1 + y2
+            if curv < 0:
+                freq += 0.5 * (y0 - y2) / curv * (f[1] - f[0])
+        params = {"frequency_hz": float(freq), "band_lo_hz": float(f[lo[b]]), "band_hi_hz": float(f[hi[b]])}
+        return np.clip(excess[best, np.arange(R.shape[1])], 0.0, 1.0), params
+
+    def describe(score: float, p: dict[str, float]) -> str:
+        return (f"resonance at {p['frequency_hz']:.1f} Hz ({score:.0%} of residual power in "
+                f"{p['band_lo_hz']:.1f}-{p['band_hi_hz']:.1f} Hz beyond what the measured spectrum puts there)")
+
+    return _Condition("resonance", evaluate, describe)
+
+
+def _best_lag(measured: np.ndarray, simulated: np.ndarray, max_lag: int) -> np.ndarray:
+    """Shift d [samples] maximizing the correlation of measured(i) with simulated(i - d).
+
+    `simulated` may hold several columns (one shift each). The correlation coefficient is taken
+    over one fixed stretch of `measured`, max_lag from either end: a raw cross-correlation sums
+    over a stretch that moves with the shift, which biases the broad peak of slow motions by
+    milliseconds. The peak is refined to a fraction of a sample by a parabola through it and its
+    neighbours. d > 0: measured lags simulated.
+    """
+    n, L = measured.shape[0], max_lag
+    w = n - 2 * L
+    m = np.zeros(n)
+    m[L:n - L] = measured[L:n - L] - measured[L:n - L].mean()
+    nfft = next_fast_len(2 * n)
+    xc = irfft(rfft(m, nfft)[:, None] * np.conj(rfft(simulated, nfft, axis=0)), nfft, axis=0)
+    xc = np.concatenate([xc[nfft - L:], xc[:L + 1]])  # rows: shifts -L..L
+    # Variance of the simulated stretch paired with the fixed measured one, for every shift.
+    start = L - np.arange(-L, L + 1)
+    c1 = np.concatenate([np.zeros((1, simulated.shape[1])), np.cumsum(simulated, axis=0)])
+    c2 = np.concatenate([np.zeros((1, simulated.shape[1])), np.cumsum(simulated**2, axis=0)])
+    var = (c2[start + w] - c2[start]) - (c1[start + w] - c1[start]) ** 2 / w
+    corr = xc / np.sqrt(np.maximum(var, 1e-300))
+    cols = np.arange(corr.shape[1])
+    k = np.argmax(corr, axis=0)
+    y0, y1, y2 = (corr[np.clip(k + o, 0, 2 * L), cols] for o in (-1, 0, 1))
+    curv = y0 - 2 * y1 + y2
+    ok = (k > 0) & (k < 2 * L) & (curv < 0)
+    frac = np.divide(0.5 * (y0 - y2), curv, out=np.zeros_like(curv), where=ok)
+    return k - L + frac
+
+
+def _lag(dt: float, measured: np.ndarray) -> _Condition:
+    max_lag = min(int(round(MAX_LAG_S / dt)), measured.size // 4)
+
+    def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        sims = measured[:, None] - R  # column 0 is the simulation (up to an offset), others surrogates
+        lags = _best_lag(measured, sims, max_lag)
+        inner = np.arange(max_lag, measured.size - max_lag)
+        # The variance removed is measured at the nearest whole-sample shift: interpolating a
+        # fractional one would average residual noise away and look like a lag explaining it.
+        shifted = measured[inner, None] - sims[inner[:, None] - np.round(lags).astype(int), np.arange(R.shape[1])]
+        scores = 1.0 - np.var(shifted, axis=0) / np.var(R[inner], axis=0)
+        return np.clip(scores, 0.0, 1.0), {"lag_ms": float(lags[0] * dt * 1e3)}
+
+    def describe(score: float, p: dict[str, float]) -> str:
+        order = "measured behind simulated" if p["lag_ms"] >= 0 else "measured ahead of simulated"
+        return f"lag of {abs(p['lag_ms']):.1f} ms, {order} (shifting removes {score:.0%} of residual variance)"
+
+    return _Condition("lag", evaluate, describe)
+
+
+def _conditions(conditions: Mapping[str, np.ndarray], dt: float | None, measured: np.ndarray | None) -> list[_Condition]:
+    """The candidate conditions the available arrays allow."""
+    c = {k: np.asarray(v, dtype=float) for k, v in conditions.items()}
+    out = []
+    if "reversal_proximity" in c:
+        near = c["reversal_proximity"] <= REVERSAL_WINDOW_S
+        out.append(_concentration("reversal", near, "near motor velocity reversals"))
+    if "abs_delta" in c:
+        small = c["abs_delta"] <= np.quantile(c["abs_delta"], SMALL_DELTA_QUANTILE)
+        out.append(_concentration("small_delta", small, "at small |delta|"))
+    for key, text in (
+        ("sin_theta", "correlated with sin(theta), gravity-like"),
+        ("cos_theta", "correlated with cos(theta)"),
+        ("accel", "proportional to link acceleration, inertia-like"),
+        ("delta", "proportional to delta, stiffness-like"),
+    ):
+        if key in c:
+            out.append(_regression(key, c[key], text))
+    if "q_mod" in c:
+        out.append(_periodic_in_q(c["q_mod"]))
+    if "qd" in c:
+        qd = c["qd"]
+        out.append(_regression("coulomb", np.sign(qd), "follows sign(qd), Coulomb-like"))
+        out.append(_regression("viscous", qd, "proportional to qd, viscous-like"))
+        out.append(_stribeck(qd))
+    if "delta_d" in c:
+        out.append(_hysteresis(c["delta_d"]))
+    if dt is not None and measured is not None:
+        out.append(_resonance(dt, measured))
+        out.append(_lag(dt, measured))
+    return out
+
+
+def condition_scores(
+    r: np.ndarray,
+    conditions: Mapping[str, np.ndarray],
+    *,
+    t: np.ndarray | None = None,
+    measured: np.ndarray | None = None,
+    n_permutations: int = 19,
+    min_effect: float = 0.05,
+    seed: int = 0,
+) -> list[ConditionScore]:
+    """Scores of how much residual r = measured - simulated concentrates under each condition,
+    highest first (scale and noise threshold: see the module docstring).
+
+    `conditions` holds per-sample arrays as from `features.operating_conditions`; conditions
+    whose arrays are missing are skipped. Resonance and lag need the time base `t` and the
+    `measured` signal. A residual without variance concentrates nowhere: the list is empty.
+    """
+    r = np.asarray(r, dtype=float)
+    for key, v in conditions.items():
+        if np.shape(v) != r.shape:
+            raise ValueError(f"condition {key!r} has shape {np.shape(v)}, expected {r.shape} like r")
+    if (t is None) != (measured is None):
+        raise ValueError("resonance and lag need both t and measured")
+    dt = None if t is None else sample_period(t)
+    if measured is not None:
+        measured = np.asarray(measured, dtype=float)
+        if measured.shape != r.shape or np.shape(t) != r.shape:
+            raise ValueError("t and measured must have the same shape as r")
+    r0 = r - r.mean()
+    if not np.any(r0):
+        return []
+    rng = np.random.default_rng(seed)
+    R = np.column_stack([r0] + [rng.permutation(r0) for _ in range(n_permutations)])
+    scores = []
+    for cond in _conditions(conditions, dt, measured):
+        values, params = cond.evaluate(R)
+        null = values[1:]
+        threshold = min_effect
+        if null.size > 1:
+            threshold = max(threshold, float(null.mean() + NULL_SIGMAS * null.std(ddof=1)))
+        score = float(values[0])
+        scores.append(ConditionScore(cond.name, score, threshold, cond.describe(score, params), params))
+    return sorted(scores, key=lambda s: -s.score)
+
+
+@dataclass(frozen=True)
+class SignalLocation:
+    """Residual windows and condition scores of one signal."""
+
+    signal: str
+    nrmse: float
+    windows: tuple[Window, ...]
+    scores: tuple[ConditionScore, ...]
+
+    def as_dict(self) -> dict:
+        return {
+            "signal": self.signal,
+            "nrmse": self.nrmse,
+            "windows": [[w.t0, w.t1, w.energy_share] for w in self.windows],
+            "conditions": [s.as_dict() for s in self.scores],
+        }
+
+
+@dataclass(frozen=True)
+class Location:
+    """Where simulation and recording differ: `signal` is the one with the largest NRMSE."""
+
+    signal: str
+    signals: Mapping[str, SignalLocation]
+
+    @property
+    def worst(self) -> SignalLocation:
+        return self.signals[self.signal]
+
+    def as_dict(self) -> dict:
+        """JSON-serializable: the worst signal's windows and conditions at top level, every
+        signal's under "signals", and "nrmse" per signal."""
+        worst = self.worst.as_dict()
+        return {
+            "signal": self.signal,
+            "nrmse": {name: s.nrmse for name, s in self.signals.items()},
+            "windows": worst["windows"],
+            "conditions": worst["conditions"],
+            "signals": {name: s.as_dict() for name, s in self.signals.items()},
+        }
+
+
+def locate(
+    t: np.ndarray,
+    measured: Mapping[str, np.ndarray],
+    simulated: Mapping[str, np.ndarray],
+    conditions: Mapping[str, np.ndarray],
+    *,
+    n_windows: int = 3,
+    min_width: float = 0.1,
+    n_permutations: int = 19,
+    min_effect: float = 0.05,
+    seed: int = 0,
+) -> Location:
+    """Windows and condition scores for every signal present in both `measured` and
+    `simulated`; the signal with the largest NRMSE is the one reported first."""
+    names = [k for k in measured if k in simulated]
+    if not names:
+        raise ValueError("no signal is present in both measured and simulated")
+    per_signal = {}
+    for name in names:
+        m = np.asarray(measured[name], dtype=float)
+        s = np.asarray(simulated[name], dtype=float)
+        r = m - s
+        per_signal[name] = SignalLocation(
+            signal=name,
+            nrmse=nrmse(m, s),
+            windows=tuple(residual_windows(t, r, n_windows, min_width)),
+            scores=tuple(condition_scores(
+                r, conditions, t=t, measured=m, n_permutations=n_permutations, min_effect=min_effect, seed=seed,
+            )),
+        )
+    worst = max(per_signal, key=lambda k: per_signal[k].nrmse)
+    return Location(worst, per_signal)

@@ -1,0 +1,273 @@
+"""Locate step on synthetic experiments whose missing physics is known.
+
+Amplitudes, phases and frequencies are drawn from seeded generators so that a detector tuned to
+one draw would fail on another.
+"""
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from mjjoint.diagnosis.features import operating_conditions, reversal_proximity
+from mjjoint.diagnosis.locate import condition_scores, locate, nrmse, residual_windows
+
+FS = 1000.0   # [Hz]
+N = 50.0      # gear ratio
+SEEDS = (0, 1, 2)
+
+
+@dataclass(frozen=True)
+class Experiment:
+    t: np.ndarray
+    q: np.ndarray         # true motor angle [rad]
+    qd: np.ndarray        # true motor velocity [rad/s]
+    theta: np.ndarray     # true link angle [rad]
+    delta: np.ndarray     # true deflection [rad]
+    delta_d: np.ndarray
+    theta_meas: np.ndarray  # quantized by the link encoder
+    conditions: dict
+
+
+def experiment(rng: np.random.Generator, duration: float = 6.0) -> Experiment:
+    """A swinging link (~0.5 Hz, ~±1.2 rad) with a small 3.7 Hz spring deflection, read by a
+    12-bit motor encoder and a 17-bit link encoder."""
+    t = np.arange(0.0, duration, 1.0 / FS)
+    w = 2 * np.pi * rng.uniform(0.4, 0.6)
+    amp, offset = rng.uniform(1.0, 1.4), rng.uniform(-0.5, 0.5)
+    wd, amp_d, phase_d = 2 * np.pi * 3.7, 0.002 * rng.uniform(0.8, 1.2), rng.uniform(0, 2 * np.pi)
+    theta = offset + amp * np.sin(w * t)
+    delta = amp_d * np.sin(wd * t + phase_d)
+    delta_d = amp_d * wd * np.cos(wd * t + phase_d)
+    q = N * (theta + delta)
+    qd = N * (amp * w * np.cos(w * t) + delta_d)
+    q_meas = np.round(q / (2 * np.pi / 4096)) * (2 * np.pi / 4096)
+    theta_meas = np.round(theta / (2 * np.pi / 2**17)) * (2 * np.pi / 2**17)
+    u = rng.normal(size=t.size)
+    cond = operating_conditions(t, q_meas, theta_meas, u, N)
+    return Experiment(t, q, qd, theta, delta, delta_d, theta_meas, cond)
+
+
+def scores_of(ex: Experiment, r: np.ndarray, measured: np.ndarray | None = None):
+    measured = ex.theta_meas if measured is None else measured
+    return condition_scores(r, ex.conditions, t=ex.t, measured=measured)
+
+
+def by_name(scores) -> dict:
+    return {s.name: s for s in scores}
+
+
+def true_reversals(t: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    j = np.flatnonzero(np.sign(qd[:-1]) != np.sign(qd[1:]))
+    return t[j] + (t[j + 1] - t[j]) * qd[j] / (qd[j] - qd[j + 1])
+
+
+# --- nrmse and features -------------------------------------------------------------------
+
+
+def test_nrmse_value_and_guards():
+    m = np.array([1.0, -1.0, 1.0, -1.0])
+    assert nrmse(m, m) == 0.0
+    assert nrmse(m, m + 0.5) == pytest.approx(0.5)
+    with pytest.raises(ValueError, match="zero std"):
+        nrmse(np.ones(5), np.zeros(5))
+    with pytest.raises(ValueError, match="shape"):
+        nrmse(m, m[:3])
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_operating_conditions_from_quantized_encoders(seed):
+    ex = experiment(np.random.default_rng(seed))
+    c = ex.conditions
+    inner = slice(20, -20)  # Savitzky-Golay edges extrapolate
+    assert np.max(np.abs(c["qd"] - ex.qd)[inner]) < 0.01 * np.max(np.abs(ex.qd))
+    assert np.max(np.abs(c["delta"] - ex.delta)[inner]) < 0.05 * np.max(np.abs(ex.delta))
+    # A 12-bit motor step divided by N is ~1 % of this deflection, so its rate is noisier.
+    assert np.sqrt(np.mean((c["delta_d"] - ex.delta_d)[inner] ** 2)) < 0.1 * np.max(np.abs(ex.delta_d))
+    np.testing.assert_allclose(c["q_mod"], np.mod(c["q_mod"], 2 * np.pi))
+    # One reversal per true velocity sign change, none invented by quantization noise.
+    reversals = true_reversals(ex.t, ex.qd)
+    found = ex.t[1:-1][(np.diff(c["reversal_proximity"])[:-1] < 0) & (np.diff(c["reversal_proximity"])[1:] > 0)]
+    assert found.size == reversals.size
+    np.testing.assert_allclose(found, reversals, atol=2e-3)
+
+
+def test_reversal_proximity_counts_a_chattering_dwell_once():
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 0.3, 1e-3)
+    qd = np.concatenate([np.ones(100), 0.01 * rng.standard_normal(100), -np.ones(100)])
+    prox = reversal_proximity(t, qd)
+    t_rev = t[np.argmin(prox)]
+    assert 0.1 <= t_rev <= 0.2
+    np.testing.assert_allclose(prox, np.abs(t - t_rev), atol=1e-3)
+    assert np.all(np.isinf(reversal_proximity(t, np.ones_like(t))))
+
+
+# --- windows ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_windows_find_energy_placed_in_2_to_3_s(seed):
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 6.0, 1.0 / FS)
+    r = 0.05 * rng.standard_normal(t.size)
+    burst = (t >= 2.0) & (t < 3.0)
+    r[burst] += rng.uniform(1.0, 3.0) * rng.standard_normal(burst.sum())
+    windows = residual_windows(t, r, n_windows=3, min_width=0.1)
+    assert 1 <= len(windows) <= 3
+    first = windows[0]
+    assert first.t0 == pytest.approx(2.0, abs=0.1) and first.t1 == pytest.approx(3.0, abs=0.1)
+    assert first.energy_share > 0.9
+    spans = sorted((w.t0, w.t1) for w in windows)
+    assert all(a[1] < b[0] for a, b in zip(spans, spans[1:]))  # disjoint
+    assert sum(w.energy_share for w in windows) <= 1.0 + 1e-12
+
+
+# --- condition scores ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_periodic_in_q_at_7_cycles_ranks_first(seed):
+    rng = np.random.default_rng(seed)
+    ex = experiment(rng)
+    a = 10 ** rng.uniform(-2, 1)
+    r = a * np.sin(7 * ex.q + rng.uniform(0, 2 * np.pi)) + 0.1 * a * rng.standard_normal(ex.t.size)
+    scores = scores_of(ex, r)
+    assert scores[0].name == "periodic_q" and scores[0].significant
+    assert scores[0].params["k"] == 7
+    assert "periodic in q at 7 cycles per revolution" in scores[0].description
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_periodic_in_q_finds_a_random_harmonic(seed):
+    rng = np.random.default_rng(100 + seed)
+    ex = experiment(rng)
+    k = int(rng.integers(1, 41))
+    r = np.sin(k * ex.q + rng.uniform(0, 2 * np.pi)) + 0.1 * rng.standard_normal(ex.t.size)
+    top = scores_of(ex, r)[0]
+    assert top.name == "periodic_q" and top.params["k"] == k
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_residual_at_velocity_reversals_ranks_reversal_first(seed):
+    rng = np.random.default_rng(seed)
+    ex = experiment(rng)
+    reversals = true_reversals(ex.t, ex.qd)
+    prox = np.min(np.abs(ex.t[:, None] - reversals[None, :]), axis=1)
+    a = 10 ** rng.uniform(-2, 1)
+    r = a * np.exp(-((prox / 0.008) ** 2)) * rng.standard_normal(ex.t.size) + 0.02 * a * rng.standard_normal(ex.t.size)
+    top = scores_of(ex, r)[0]
+    assert top.name == "reversal" and top.significant
+    assert re.fullmatch(r"near motor velocity reversals \(\d+% of residual energy in \d+% of the time\)", top.description)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_gravity_like_residual_ranks_sin_theta_first(seed):
+    rng = np.random.default_rng(seed)
+    ex = experiment(rng)
+    a = 10 ** rng.uniform(-2, 1)
+    r = a * np.sin(ex.theta) + 0.05 * a * rng.standard_normal(ex.t.size)
+    top = scores_of(ex, r)[0]
+    assert top.name == "sin_theta" and top.score > 0.9 and top.significant
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_coulomb_residual_ranks_sign_qd_first(seed):
+    rng = np.random.default_rng(seed)
+    ex = experiment(rng)
+    r = rng.uniform(0.1, 2.0) * np.sign(ex.qd) + 0.05 * rng.standard_normal(ex.t.size)
+    top = scores_of(ex, r)[0]
+    assert top.name == "coulomb" and top.score > 0.9
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_hysteresis_in_the_spring_ranks_first(seed):
+    rng = np.random.default_rng(seed)
+    ex = experiment(rng)
+    tau = 2000.0 * ex.delta  # spring torque, the measured signal whose model lacks hysteresis
+    h = rng.uniform(0.05, 0.3) * np.std(tau)
+    r = h * np.tanh(ex.delta_d / (0.05 * np.max(np.abs(ex.delta_d)))) + 0.05 * h * rng.standard_normal(ex.t.size)
+    top = scores_of(ex, r, measured=tau + rng.normal(0, 0.01, ex.t.size))[0]
+    assert top.name == "hysteresis" and top.significant
+    assert "clockwise" in top.description
+
+
+def multisine(rng: np.random.Generator, t: np.ndarray) -> np.ndarray:
+    f = rng.uniform(0.3, 3.0, 3)
+    return sum(rng.uniform(0.2, 1.0) * np.sin(2 * np.pi * fi * t + rng.uniform(0, 2 * np.pi)) for fi in f)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("sign", (1, -1))
+def test_simulation_shifted_by_5_ms_reports_the_lag(seed, sign):
+    rng = np.random.default_rng(seed)
+    ex = experiment(rng)
+    sig = multisine(rng, ex.t)
+    measured = np.interp(ex.t - sign * 0.005, ex.t, sig)  # sign +1: measured behind simulated
+    top = scores_of(ex, measured - sig, measured=measured)[0]
+    assert top.name == "lag" and top.score > 0.9
+    assert top.params["lag_ms"] == pytest.approx(5.0 * sign, abs=0.5)
+    order = "measured behind simulated" if sign > 0 else "measured ahead of simulated"
+    assert re.match(rf"lag of (4\.[5-9]|5\.[0-5]) ms, {order}", top.description)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_damped_30_hz_oscillation_is_a_resonance_at_30_hz(seed):
+    rng = np.random.default_rng(seed)
+    ex = experiment(rng)
+    r = 0.01 * rng.standard_normal(ex.t.size)
+    for t0 in np.sort(rng.uniform(0.0, 5.0, 4)):
+        s = np.clip(ex.t - t0, 0.0, None)
+        tau = rng.uniform(0.05, 0.2)
+        r += (ex.t >= t0) * rng.uniform(0.5, 2.0) * np.exp(-s / tau) * np.sin(2 * np.pi * 30.0 * s)
+    by = by_name(scores_of(ex, r))
+    assert by["resonance"].significant
+    assert by["resonance"].params["frequency_hz"] == pytest.approx(30.0, abs=1.0)
+    assert max(by.values(), key=lambda s: s.score).name == "resonance"
+    assert re.match(r"resonance at (29|30)\.\d Hz", by["resonance"].description)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_white_noise_residual_concentrates_nowhere(seed):
+    rng = np.random.default_rng(seed)
+    ex = experiment(rng)
+    r = 10 ** rng.uniform(-3, 0) * rng.standard_normal(ex.t.size)
+    scores = scores_of(ex, r)
+    assert len(scores) >= 13  # every condition was looked at ...
+    assert not any(s.significant for s in scores), [s.description for s in scores if s.significant]
+
+
+def test_zero_residual_concentrates_nowhere():
+    ex = experiment(np.random.default_rng(0))
+    assert scores_of(ex, np.full(ex.t.size, 0.3)) == []
+
+
+# --- locate -------------------------------------------------------------------------------
+
+
+def test_locate_reports_the_worst_signal_as_json():
+    rng = np.random.default_rng(7)
+    ex = experiment(rng)
+    tau = 2000.0 * ex.delta + 5.0 * np.sin(ex.theta)
+    measured = {"theta": ex.theta_meas, "tau": tau}
+    simulated = {
+        "theta": ex.theta_meas - 1e-3 * rng.standard_normal(ex.t.size),
+        "tau": tau - 0.8 * np.sin(6 * ex.q) - 0.01 * rng.standard_normal(ex.t.size),
+    }
+    loc = locate(ex.t, measured, simulated, ex.conditions)
+    d = json.loads(json.dumps(loc.as_dict()))
+    assert d["signal"] == "tau" == loc.signal
+    assert set(d["nrmse"]) == {"theta", "tau"} and d["nrmse"]["tau"] > d["nrmse"]["theta"]
+    assert d["nrmse"]["tau"] == pytest.approx(nrmse(measured["tau"], simulated["tau"]))
+    assert all(len(w) == 3 and w[0] < w[1] for w in d["windows"])
+    scores = [c["score"] for c in d["conditions"]]
+    assert scores == sorted(scores, reverse=True)
+    assert d["conditions"][0]["name"] == "periodic_q" and d["conditions"][0]["params"]["k"] == 6
+    assert re.fullmatch(
+        r"periodic in q at 6 cycles per revolution \(explains \d+% of residual variance\)",
+        d["conditions"][0]["description"],
+    )
+    assert not any(c["significant"] for c in d["signals"]["theta"]["conditions"])

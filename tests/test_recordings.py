@@ -1,0 +1,439 @@
+"""Recordings I/O: round trips, column mapping and scales, and rejection of bad files."""
+
+from __future__ import annotations
+
+import dataclasses
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mjjoint.recordings import (
+    DEG,
+    MultiRecording,
+    Recording,
+    RecordingError,
+    parse_column_map,
+    parse_scales,
+    read_recording,
+    write_recording,
+)
+
+N = 50
+DT = 1e-3
+
+
+def make_recording(n: int = N, tau: bool = True, seed: int = 0) -> Recording:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * DT
+    return Recording(
+        t=t,
+        u=rng.normal(size=n),
+        q=rng.normal(size=n) * 50,
+        theta=rng.normal(size=n),
+        tau=rng.normal(size=n) * 100 if tau else None,
+        gear_ratio=100.0,
+    )
+
+
+def csv_text(header: str, rows: list[list[object]]) -> str:
+    return header + "\n" + "".join(",".join(str(v) for v in row) + "\n" for row in rows)
+
+
+def valid_rows(n: int = 20) -> list[list[object]]:
+    return [[repr(i * DT), 0.1 * i, 0.2 * i, 0.01 * i, 0.5] for i in range(n)]
+
+
+def assert_same_signals(a: Recording | MultiRecording, b: Recording | MultiRecording) -> None:
+    sa, sb = a.signals(), b.signals()
+    assert list(sa) == list(sb)
+    for name in sa:
+        np.testing.assert_array_equal(sa[name], sb[name], err_msg=name)
+
+
+# --- round trips -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("tau", [True, False])
+def test_csv_round_trip_is_exact(tmp_path: Path, tau: bool) -> None:
+    rec = make_recording(tau=tau)
+    path = tmp_path / "rec.csv"
+    write_recording(path, rec)
+    header = path.read_text().splitlines()[0]
+    assert header == ("t,u,q,theta,tau" if tau else "t,u,q,theta")
+    back = read_recording(path, gear_ratio=100.0)
+    assert isinstance(back, Recording)
+    assert_same_signals(rec, back)
+    assert back.gear_ratio == 100.0
+    assert back.meta["source"] == str(path)
+
+
+def test_multi_joint_round_trip(tmp_path: Path) -> None:
+    j1, j2 = make_recording(seed=1), make_recording(tau=False, seed=2)
+    multi = MultiRecording((j1, j2))
+    path = tmp_path / "multi.csv"
+    write_recording(path, multi)
+    assert path.read_text().splitlines()[0] == "t,u1,q1,theta1,tau1,u2,q2,theta2"
+    back = read_recording(path)
+    assert isinstance(back, MultiRecording)
+    assert back.n_joints == 2
+    assert_same_signals(multi, back)
+    assert back.joint(2).tau is None
+    assert back.joint(1).meta["joint"] == 1
+    with pytest.raises(IndexError):
+        back.joint(0)
+
+
+def finite(bound: float) -> st.SearchStrategy[float]:
+    return st.floats(min_value=-bound, max_value=bound, allow_nan=False, allow_subnormal=True)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.lists(st.tuples(finite(1e5), finite(1e5), finite(1e3), finite(1e5)), min_size=10, max_size=30), jitter=st.floats(0, 0.4))
+def test_round_trip_any_floats(tmp_path: Path, data: list[tuple[float, ...]], jitter: float) -> None:
+    u, q, theta, tau = (np.array(c) for c in zip(*data))
+    t = 3.0 + np.arange(len(u)) * DT + jitter * DT * (np.arange(len(u)) % 2)
+    rec = Recording(t=t, u=u, q=q, theta=theta, tau=tau)
+    path = tmp_path / "any.csv"
+    write_recording(path, rec)
+    assert_same_signals(rec, read_recording(path))
+
+
+# --- mapping, scales, formats ----------------------------------------------------------
+
+
+def test_csv_column_map_and_degree_scales(tmp_path: Path) -> None:
+    rec = make_recording()
+    q_deg, theta_deg = rec.q / DEG, rec.theta / DEG
+    rows = [[repr(float(v)) for v in row] for row in zip(rec.t, rec.u, q_deg, theta_deg)]
+    path = tmp_path / "logged.csv"
+    path.write_text(csv_text("time,torque,motor_deg,link_deg", rows))
+    back = read_recording(
+        path,
+        columns=parse_column_map("t=time, u=torque, q=motor_deg, theta=link_deg"),
+        scales=parse_scales("q=deg,theta=deg,u=2.5"),
+    )
+    np.testing.assert_array_equal(back.q, q_deg * DEG)
+    np.testing.assert_array_equal(back.theta, theta_deg * DEG)
+    np.testing.assert_array_equal(back.u, rec.u * 2.5)
+    assert back.tau is None
+    assert back.meta["columns"] == {"t": "time", "u": "torque", "q": "motor_deg", "theta": "link_deg"}
+
+
+def test_npz_column_map_and_scales(tmp_path: Path) -> None:
+    rec = make_recording()
+    path = tmp_path / "rec.npz"
+    np.savez(path, time=rec.t, cmd=rec.u, qm=rec.q / DEG, ql=rec.theta / DEG, gain=np.array(3.0))
+    back = read_recording(path, columns={"t": "time", "u": "cmd", "q": "qm", "theta": "ql"}, scales={"q": DEG, "theta": DEG})
+    np.testing.assert_array_equal(back.q, rec.q / DEG * DEG)
+    np.testing.assert_array_equal(back.theta, rec.theta / DEG * DEG)
+    np.testing.assert_array_equal(back.t, rec.t)
+
+
+def test_mat_column_vectors_rows_and_scales(tmp_path: Path) -> None:
+    rec = make_recording()
+    path = tmp_path / "rec.mat"
+    # MATLAB vectors arrive as N x 1; a 2-D array holds one signal per row.
+    positions = np.vstack([rec.q / DEG, rec.theta / DEG, np.zeros(N)])
+    scipy.io.savemat(path, {"time": rec.t[:, None], "vir": rec.u[None, :], "pos_deg": positions, "kp": 2.0})
+    back = read_recording(
+        path,
+        columns=parse_column_map("t=time,u=vir,q=pos_deg[0],theta=pos_deg[1]"),
+        scales=parse_scales("q=deg,theta=deg"),
+    )
+    np.testing.assert_array_equal(back.t, rec.t)
+    np.testing.assert_array_equal(back.u, rec.u)
+    np.testing.assert_array_equal(back.q, rec.q / DEG * DEG)
+    np.testing.assert_array_equal(back.theta, rec.theta / DEG * DEG)
+
+
+@pytest.mark.parametrize(
+    ("columns", "expected"),
+    [
+        ({"u": "volts", "q": "pos_deg[0]", "theta": "pos_deg[1]"}, ["'volts' (for u) not found", "'vir'", "'pos_deg'"]),
+        ({"u": "vir", "q": "pos_deg", "theta": "pos_deg[1]"}, ["shape (2, 50)", "pos_deg[i]"]),
+        ({"u": "vir", "q": "pos_deg[0]", "theta": "pos_deg[2]"}, ["cannot take row 2"]),
+        ({"u": "vir", "q": "pos_deg[0]", "theta": "name"}, ["not a real numeric array"]),
+        ({"u": "vir"}, ["missing required variable(s) q, theta", "'pos_deg'"]),
+    ],
+)
+def test_mat_bad_mapping_names_the_variables(tmp_path: Path, columns: dict[str, str], expected: list[str]) -> None:
+    path = tmp_path / "rec.mat"
+    scipy.io.savemat(path, {"t": np.arange(N) * DT, "vir": np.zeros(N), "pos_deg": np.zeros((2, N)), "name": "axis 1"})
+    with pytest.raises(RecordingError) as err:
+        read_recording(path, columns=columns)
+    assert str(path) in str(err.value)
+    for part in expected:
+        assert part in str(err.value)
+
+
+def test_multi_joint_scales_apply_to_every_joint_unless_overridden(tmp_path: Path) -> None:
+    header = "t,u1,q1,theta1,u2,q2,theta2"
+    rows = [[repr(i * DT), 1.0, 1.0, 1.0, 1.0, 1.0, 1.0] for i in range(N)]
+    path = tmp_path / "multi.csv"
+    path.write_text(csv_text(header, rows))
+    multi = read_recording(path, scales={"theta": DEG, "theta2": 2.0, "u": 3.0})
+    assert isinstance(multi, MultiRecording)
+    assert multi.joint(1).theta[0] == DEG and multi.joint(2).theta[0] == 2.0
+    assert multi.joint(1).u[0] == multi.joint(2).u[0] == 3.0
+
+
+def test_k_m_turns_current_into_torque(tmp_path: Path) -> None:
+    rec = make_recording()
+    path = tmp_path / "current.csv"
+    write_recording(path, rec)
+    back = read_recording(path, k_m=0.05)
+    np.testing.assert_array_equal(back.u, rec.u * 0.05)
+    np.testing.assert_array_equal(back.tau, rec.tau)  # only u is a current
+    assert back.meta["k_m"] == 0.05
+    with pytest.raises(RecordingError, match="k_m must be finite and positive"):
+        read_recording(path, k_m=-1.0)
+
+
+def test_parse_column_map_and_scales() -> None:
+    assert parse_column_map("t=time,u=vir,q=qm,theta=qm") == {"t": "time", "u": "vir", "q": "qm", "theta": "qm"}
+    assert parse_scales("q=deg, theta=DEG, u=2.5, t=1e-3") == {"q": DEG, "theta": DEG, "u": 2.5, "t": 1e-3}
+    assert parse_scales("theta2=deg") == {"theta2": DEG}
+
+
+@pytest.mark.parametrize(
+    ("parse", "text", "expected"),
+    [
+        (parse_column_map, "", "empty"),
+        (parse_column_map, "t=time,u", "'u' is not of the form name=value"),
+        (parse_column_map, "t=time,t=x", "'t' is given twice"),
+        (parse_column_map, "speed=v", "unknown signal name(s) 'speed'; allowed: t, u, q, theta, tau"),
+        (parse_column_map, "u=", "not of the form"),
+        (parse_scales, "q=degrees", "must be a number or 'deg'"),
+        (parse_scales, "q=0", "finite and non-zero"),
+        (parse_scales, "q=nan", "finite and non-zero"),
+        (parse_scales, "q0=2", "unknown signal name(s) 'q0'"),
+    ],
+)
+def test_option_parse_errors(parse, text: str, expected: str) -> None:
+    with pytest.raises(RecordingError) as err:
+        parse(text)
+    assert expected in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+# --- the Recording object --------------------------------------------------------------
+
+
+def test_recording_properties_and_immutability() -> None:
+    rec = make_recording()
+    assert rec.n == N
+    assert rec.dt == pytest.approx(DT)
+    assert rec.duration == pytest.approx((N - 1) * DT)
+    assert list(rec.signals()) == ["t", "u", "q", "theta", "tau"]
+    with pytest.raises(ValueError):
+        rec.u[0] = 1.0  # arrays are read-only
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        rec.u = np.zeros(N)
+    with pytest.raises(ValueError, match="theta has 3 samples"):
+        Recording(t=np.arange(4.0), u=np.zeros(4), q=np.zeros(4), theta=np.zeros(3))
+    with pytest.raises(ValueError, match="gear_ratio"):
+        dataclasses.replace(rec, gear_ratio=0.0)
+
+
+def test_with_columns_replaces_and_checks() -> None:
+    rec = make_recording()
+    new = rec.with_columns(u=np.ones(N), tau=None)
+    np.testing.assert_array_equal(new.u, np.ones(N))
+    assert new.tau is None and list(new.signals()) == ["t", "u", "q", "theta"]
+    np.testing.assert_array_equal(new.q, rec.q)
+    with pytest.raises(ValueError, match="unknown column"):
+        rec.with_columns(speed=np.ones(N))
+    with pytest.raises(ValueError, match="samples"):
+        rec.with_columns(u=np.ones(N + 1))
+
+
+def test_split_is_contiguous_by_time() -> None:
+    rec = make_recording(n=100)
+    train, held = rec.split(0.7)
+    assert (train.n, held.n) == (70, 30)
+    assert train.t[-1] < held.t[0]
+    np.testing.assert_array_equal(np.concatenate([train.q, held.q]), rec.q)
+    assert train.gear_ratio == held.gear_ratio == rec.gear_ratio
+    for bad in (0.0, 1.0, -0.5):
+        with pytest.raises(ValueError, match="fraction"):
+            rec.split(bad)
+
+
+def test_slice_keeps_both_ends() -> None:
+    rec = make_recording(n=100)
+    part = rec.slice(0.010, 0.020)
+    assert part.n == 11
+    assert part.t[0] == rec.t[10] and part.t[-1] == rec.t[20]
+    np.testing.assert_array_equal(part.tau, rec.tau[10:21])
+    with pytest.raises(ValueError, match="no samples"):
+        rec.slice(5.0, 6.0)
+
+
+def test_multi_recording_split_and_slice() -> None:
+    multi = MultiRecording((make_recording(n=100, seed=1), make_recording(n=100, seed=2)))
+    train, held = multi.split(0.5)
+    assert train.n + held.n == 100 and train.n_joints == 2
+    np.testing.assert_array_equal(held.joint(2).u, multi.joint(2).u[train.n :])
+    assert multi.slice(0.0, 0.0095).n == 10
+    with pytest.raises(ValueError, match="share the same t"):
+        MultiRecording((make_recording(n=100), make_recording(n=99)))
+
+
+# --- bad files ---------------------------------------------------------------------------
+
+HEADER = "t,u,q,theta,tau"
+
+
+def rows_with(i: int, column: int, value: object, n: int = 20) -> list[list[object]]:
+    rows = valid_rows(n)
+    rows[i][column] = value
+    return rows
+
+
+def time_rows(times: list[float]) -> list[list[object]]:
+    return [[repr(t), 0.0, 0.0, 0.0, 0.0] for t in times]
+
+
+BAD_CSV: dict[str, tuple[str | bytes, list[str]]] = {
+    "truncated last line": (csv_text(HEADER, valid_rows()) + "0.02,0.1,0.", ["line 22", "truncated"]),
+    "wrong header": (csv_text("time,u,q,theta,tau", valid_rows()), ["missing required column(s) t", "'time'"]),
+    "text in numeric column": (csv_text(HEADER, rows_with(4, 2, "abc")), ["line 6", "column 'q'", "'abc' is not a number"]),
+    "empty field": (csv_text(HEADER, rows_with(4, 3, "")), ["line 6", "column 'theta'", "'' is not a number"]),
+    "nan": (csv_text(HEADER, rows_with(3, 3, "nan")), ["'theta'", "nan", "sample 3 (line 5)"]),
+    "inf": (csv_text(HEADER, rows_with(7, 1, "-inf")), ["'u'", "-inf", "sample 7"]),
+    "duplicated time": (csv_text(HEADER, time_rows([0.001 * i for i in range(9)] + [0.008] + [0.01, 0.011])), ["duplicated", "sample 9", "t=0.008"]),
+    "decreasing time": (csv_text(HEADER, time_rows([0.001 * i for i in range(9)] + [0.005, 0.01, 0.011])), ["decreasing", "sample 9"]),
+    "empty file": ("", ["empty file"]),
+    "blank lines only": ("\n  \n\n", ["empty file"]),
+    "header only": (HEADER + "\n", ["header but no data rows"]),
+    "no header": (csv_text("0.0,1,2,3,4", valid_rows()), ["no header"]),
+    "too few samples": (csv_text(HEADER, valid_rows(5)), ["only 5 samples", "at least 10"]),
+    "theta in counts": (csv_text(HEADER, rows_with(12, 3, 40960.0)), ["'theta'", "40960", "sample 12", "--scales theta=deg"]),
+    "huge torque": (csv_text(HEADER, rows_with(2, 1, 3e7)), ["'u'", "3e+07", "wrong units"]),
+    "huge q": (csv_text(HEADER, rows_with(2, 2, -2e6)), ["'q'", "counts or degrees"]),
+    "huge tau": (csv_text(HEADER, rows_with(2, 4, 2e6)), ["'tau'"]),
+    "gap in time": (csv_text(HEADER, time_rows([0.001 * i for i in range(10)] + [0.1 + 0.001 * i for i in range(10)])), ["gap in time", "sample 10", "t=0.009"]),
+    "time in milliseconds": (csv_text(HEADER, time_rows([2.0 * i for i in range(12)])), ["sample period 2 s", "seconds"]),
+    "time in nanoseconds": (csv_text(HEADER, time_rows([1e-9 * i for i in range(12)])), ["sample period 1e-09 s"]),
+    "unknown column": (csv_text(HEADER + ",foo", [r + [1] for r in valid_rows()]), ["unknown column(s) 'foo'", "allowed: t, u, q, theta, tau"]),
+    "duplicated column": (csv_text("t,u,q,theta,q", valid_rows()), ["duplicated column name(s) 'q'"]),
+    "empty column name": (csv_text("t,u,,theta,tau", valid_rows()), ["header field 3 is empty"]),
+    "semicolons": (csv_text("t;u;q;theta", []), ["comma-separated"]),
+    "mixed layouts": (csv_text("t,u,q,theta,u2", valid_rows()), ["mixes single-joint names"]),
+    "joint numbering gap": (csv_text("t,u2,q2,theta2,tau2", valid_rows()), ["numbered 1, 2"]),
+    "not utf-8": (csv_text(HEADER, valid_rows()).encode() + b"\xff\xfe\n", ["not UTF-8"]),
+    "nul byte": (csv_text(HEADER, valid_rows()).encode() + b"1,\x00\n", ["line 22"]),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_CSV))
+def test_bad_csv_is_rejected_with_one_line_and_untouched(tmp_path: Path, case: str) -> None:
+    content, expected = BAD_CSV[case]
+    path = tmp_path / "bad.csv"
+    path.write_bytes(content.encode() if isinstance(content, str) else content)
+    before = (path.read_bytes(), path.stat().st_mtime_ns)
+    with pytest.raises(RecordingError) as err:
+        read_recording(path)
+    message = str(err.value)
+    assert "\n" not in message and "\r" not in message
+    assert message.startswith(f"{path}: ")
+    for part in expected:
+        assert part in message, (part, message)
+    assert (path.read_bytes(), path.stat().st_mtime_ns) == before
+
+
+def test_missing_file_and_unknown_suffix(tmp_path: Path) -> None:
+    with pytest.raises(RecordingError, match="no such file"):
+        read_recording(tmp_path / "nope.csv")
+    other = tmp_path / "rec.txt"
+    other.write_text("t,u,q,theta\n")
+    with pytest.raises(RecordingError, match="unsupported file type '.txt'"):
+        read_recording(other)
+    with pytest.raises(RecordingError, match="not a regular file"):
+        read_recording(tmp_path)
+
+
+@pytest.mark.parametrize("suffix", [".mat", ".npz"])
+def test_corrupt_container_is_rejected(tmp_path: Path, suffix: str) -> None:
+    path = tmp_path / f"bad{suffix}"
+    path.write_bytes(b"PK\x03\x04 definitely not a real archive" * 10)
+    before = (path.read_bytes(), path.stat().st_mtime_ns)
+    with pytest.raises(RecordingError) as err:
+        read_recording(path)
+    assert "\n" not in str(err.value) and "not a readable" in str(err.value)
+    assert (path.read_bytes(), path.stat().st_mtime_ns) == before
+
+
+def test_npz_length_mismatch_names_the_column(tmp_path: Path) -> None:
+    path = tmp_path / "rec.npz"
+    np.savez(path, t=np.arange(N) * DT, u=np.zeros(N - 1), q=np.zeros(N), theta=np.zeros(N))
+    with pytest.raises(RecordingError, match="column 'u' has 49 samples but 't' has 50"):
+        read_recording(path)
+
+
+def test_accepted_oddities(tmp_path: Path) -> None:
+    """Jitter below half a period, extra columns when allowed (even text), BOM, blank lines."""
+    rng = np.random.default_rng(3)
+    times = np.arange(N) * DT + rng.uniform(-0.2, 0.2, N) * DT
+    rows = [[repr(float(t)), 0.0, 0.0, 0.0, "ok"] for t in times]
+    path = tmp_path / "odd.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + csv_text("t,u,q,theta,status", rows).replace("\n", "\n\n", 3).encode())
+    with pytest.raises(RecordingError, match="unknown column"):
+        read_recording(path)
+    rec = read_recording(path, allow_extra=True)
+    np.testing.assert_array_equal(rec.t, times)
+
+
+def test_mapped_column_missing_from_csv(tmp_path: Path) -> None:
+    path = tmp_path / "rec.csv"
+    write_recording(path, make_recording())
+    with pytest.raises(RecordingError, match=r"column 'volts' \(for u\) not found; header has 't', 'u'"):
+        read_recording(path, columns={"u": "volts"})
+    with pytest.raises(RecordingError, match="scale is given for 'tau2'"):
+        read_recording(path, scales={"tau2": 2.0})
+
+
+# --- fuzz --------------------------------------------------------------------------------
+
+VALID_CSV = csv_text(HEADER, valid_rows(12)).encode()
+
+# Mostly bytes that mean something in a CSV of numbers, so that mutations reach past the decoder.
+chunk = st.one_of(
+    st.text(alphabet="0123456789.,-+eE \n\r\"tnaifx", min_size=1, max_size=3).map(str.encode),
+    st.sampled_from([b"nan", b"inf", b"1e308", b"\x00", b"\xef\xbb\xbf", b",,"]),
+    st.binary(min_size=1, max_size=3),
+)
+mutation = st.tuples(st.sampled_from(["set", "insert", "delete"]), st.integers(0, len(VALID_CSV) - 1), chunk)
+
+
+def mutate(data: bytes, edits: list[tuple[str, int, bytes]]) -> bytes:
+    for op, pos, chunk in edits:
+        pos = min(pos, len(data))
+        if op == "set":
+            data = data[:pos] + chunk + data[pos + len(chunk) :]
+        elif op == "insert":
+            data = data[:pos] + chunk + data[pos:]
+        else:
+            data = data[:pos] + data[pos + len(chunk) :]
+    return data
+
+
+@settings(max_examples=300, deadline=None)
+@given(edits=st.lists(mutation, min_size=1, max_size=4))
+def test_mutated_csv_reads_or_raises_recording_error(edits: list[tuple[str, int, bytes]]) -> None:
+    data = mutate(VALID_CSV, edits)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "fuzz.csv"
+        path.write_bytes(data)
+        try:
+            rec = read_recording(path)
+        except RecordingError as err:
+            assert "\n" not in str(err) and str(err).startswith(str(path))
+        else:
+            assert rec.n >= 10 and all(np.isfinite(x).all() for x in rec.signals().values())
+        assert path.read_bytes() == data
