@@ -104,7 +104,10 @@ class JointParams:
             except ValueError:
                 k = next(k for k, v in values.items() if not _is_float(v))
                 raise ValueError(f"{section}.{k}={values[k]!r} is not a number") from None
-            terms[section] = klass(**parsed)
+            try:
+                terms[section] = klass(**parsed)
+            except ValueError as exc:
+                raise ValueError(f"{section}.{exc}") from None
         hysteresis = terms.pop("hysteresis")
         transmission = dataclasses.replace(terms.pop("transmission"), hysteresis=hysteresis)
         return cls(motor_joint=cfg.get("motor_joint", "motor"), link_joint=cfg.get("link_joint", "link"),

@@ -23,7 +23,7 @@ def check(name: str, value: Any, lo: float | None = None, hi: float | None = Non
     above = hi is not None and (v >= hi if hi_open else v > hi)
     if below or above:
         left = "(" if lo_open else "["
-        right = ")" if hi_open else "]"
+        right = ")" if hi_open or hi is None else "]"
         lo_s = "-inf" if lo is None else f"{lo:g}"
         hi_s = "inf" if hi is None else f"{hi:g}"
         raise ValueError(f"{name}={v:g} is outside the allowed range {left}{lo_s}, {hi_s}{right}")

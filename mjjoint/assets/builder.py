@@ -15,8 +15,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from ..coupling.plugin import PLUGIN_NAME, register
-from ..joint import JointParams
+from ..coupling.plugin import PLUGIN_NAME, register, register_model
+from ..joint import GROUND, JointParams
 from ..params import check
 
 ASSETS_DIR = Path(os.environ.get("MJJOINT_ASSETS", Path(__file__).resolve().parents[2] / "assets" / "mjcf"))
@@ -141,7 +141,12 @@ def load_model(source: str | Path | mujoco.MjSpec | None = None, **kwargs) -> mu
     for plugin in spec.plugins:
         if plugin.plugin_name == PLUGIN_NAME:
             try:
-                JointParams.from_config(dict(plugin.config))
+                params = JointParams.from_config(dict(plugin.config))
+                for name in (params.motor_joint, params.link_joint):
+                    if name != GROUND and spec.joint(name) is None:
+                        raise ValueError(f"joint {name!r} named in the config does not exist in the model")
             except ValueError as exc:
                 raise ValueError(f"plugin instance {plugin.name!r}: {exc}") from None
-    return spec.compile()
+    model = spec.compile()
+    register_model(model)
+    return model

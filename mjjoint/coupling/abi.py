@@ -86,6 +86,8 @@ class Offsets:
     m_jnt_qposadr: int
     m_jnt_dofadr: int
     m_plugin_stateadr: int
+    m_plugin_attr: int
+    m_plugin_attradr: int
     m_timestep: int
 
 
@@ -123,7 +125,8 @@ def offsets() -> Offsets:
         d_qpos=dd["qpos"], d_qvel=dd["qvel"], d_qfrc_passive=dd["qfrc_passive"],
         d_plugin_state=dd["plugin_state"], d_plugin_data=dd["plugin_data"],
         m_jnt_type=mm["jnt_type"], m_jnt_qposadr=mm["jnt_qposadr"], m_jnt_dofadr=mm["jnt_dofadr"],
-        m_plugin_stateadr=mm["plugin_stateadr"], m_timestep=hits[0],
+        m_plugin_stateadr=mm["plugin_stateadr"], m_plugin_attr=mm["plugin_attr"],
+        m_plugin_attradr=mm["plugin_attradr"], m_timestep=hits[0],
     )
 
 

@@ -7,8 +7,9 @@ friction and hysteresis states held in ``plugin_state`` — so ``mj_getState``, 
 
 Once per mjData, a Python ``init`` parses the instance's MJCF ``<config>`` with
 ``JointParams.from_config`` (the validation users get everywhere else), resolves the joint
-names, and hands the callbacks a float64 parameter block through ``plugin_data``. Doing this
-part in Python keeps the parsing and its error messages in one place; it never runs per step.
+names, and stores the parameter block in the model-keyed ``registry``; ``plugin_data`` only
+caches the row. Doing this part in Python keeps the parsing and its error messages in one
+place; it never runs per step.
 
 The callbacks read mjModel/mjData through offsets discovered at run time (``abi.offsets``),
 baked in as constants when they are compiled, once per process, at registration. The physics
@@ -22,22 +23,22 @@ import threading
 
 import mujoco
 import numpy as np
-from numba import cfunc, types
+from numba import cfunc, njit, types
 
 from ..joint import GROUND, JointParams, config_keys
-from . import abi
+from . import abi, registry
 from .kernels import joint_advance, joint_forces
 from .layout import BLOCK_LEN, LD, LQ, MD, MQ, NSTATE, pack
-from .pointers import f64_array, f64_at, f64_ptr_array, field, i32_array, u64_array
+from .pointers import _addr, f64_array, f64_at, f64_ptr_array, field, i32_array, u64_array
+from .registry import find_row, row_matches
 
 PLUGIN_NAME = "mjjoint.joint"
 _MJOBJ_JOINT = int(mujoco.mjtObj.mjOBJ_JOINT)
 _SINGLE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 _lock = threading.Lock()
-_registered: dict[str, object] = {}      # keeps every callback object alive for the process
-_blocks: dict[tuple[int, int], np.ndarray] = {}  # (mjData address, instance) -> parameter block
-last_init_error: str | None = None
+_registered: dict[str, object] = {}  # keeps every callback object alive for the process
+_next_row = 0
 
 
 def _read_config(m_addr: int, instance: int) -> dict[str, str]:
@@ -78,35 +79,61 @@ def block_for(m_addr: int, instance: int) -> np.ndarray:
     return pack(params, mq, md, lq, ld)
 
 
-def _set_plugin_data(d_addr: int, instance: int, value: int) -> None:
-    slots = abi._read_u64(d_addr + abi.offsets().d_plugin_data)
-    ctypes.c_uint64.from_address(slots + 8 * instance).value = value
+def _attr_span(m_addr: int, instance: int) -> tuple[int, int]:
+    """Address and length of one instance's config values (NUL-separated, key order)."""
+    off = abi.offsets()
+    attr = abi._read_u64(m_addr + off.m_plugin_attr)
+    adr = ctypes.c_int.from_address(abi._read_u64(m_addr + off.m_plugin_attradr) + 4 * instance).value
+    start = attr + adr
+    length, seen = 0, 0
+    while seen < len(config_keys()):
+        if ctypes.c_char.from_address(start + length).value == b"\0":
+            seen += 1
+        length += 1
+    return start, length
+
+
+def register_model(model_or_address, instance: int | None = None) -> list[int]:
+    """Parse and store the parameters of a model's plugin instances; returns their rows.
+
+    Called automatically for every new mjData (plugin init) and by ``load_model``; call it
+    yourself for a model that is rolled out without ever having had an mjData of its own
+    (e.g. ``copy.copy(model)`` handed straight to ``mujoco.rollout``).
+    """
+    global _next_row
+    if isinstance(model_or_address, int):
+        m_addr = model_or_address
+        instances = [instance] if instance is not None else []
+    else:
+        m_addr = model_or_address._address
+        instances = [instance] if instance is not None else range(model_or_address.nplugin)
+    rows = []
+    for i in instances:
+        attr, length = _attr_span(m_addr, i)
+        with _lock:
+            r = find_row(registry.keys, m_addr, attr, i)
+            if r < 0:
+                blk = block_for(m_addr, i)
+                r = _next_row
+                _next_row = (_next_row + 1) % registry.CAPACITY
+                registry.keys[r] = 0  # invalidate before the parameters change
+                registry.params[r] = blk
+                registry.keys[r] = (m_addr, attr, length, registry.checksum(attr, length), i)
+        rows.append(int(r))
+    return rows
 
 
 def _init(m_addr, d_addr, instance):
     global last_init_error
     try:
-        blk = block_for(m_addr, instance)
+        (row,) = register_model(m_addr, instance)
     except Exception as exc:  # noqa: BLE001 - a C caller cannot take a Python exception
         last_init_error = str(exc)
         print(f"mjjoint: {exc}", file=sys.stderr)
         return -1
-    with _lock:
-        _blocks[(d_addr, instance)] = blk
-    _set_plugin_data(d_addr, instance, blk.ctypes.data)
+    slots = abi._read_u64(d_addr + abi.offsets().d_plugin_data)
+    ctypes.c_uint64.from_address(slots + 8 * instance).value = row
     return 0
-
-
-def _destroy(d_addr, instance):
-    with _lock:
-        _blocks.pop((d_addr, instance), None)
-
-
-def _copy(dest_addr, m_addr, src_addr, instance):
-    with _lock:
-        blk = _blocks[(src_addr, instance)].copy()
-        _blocks[(dest_addr, instance)] = blk
-    _set_plugin_data(dest_addr, instance, blk.ctypes.data)
 
 
 def _compile_hot_callbacks(off: abi.Offsets):
@@ -114,6 +141,36 @@ def _compile_hot_callbacks(off: abi.Offsets):
     d_qpos, d_qvel, d_frc = off.d_qpos, off.d_qvel, off.d_qfrc_passive
     d_state, d_data = off.d_plugin_state, off.d_plugin_data
     m_stateadr, m_dt = off.m_plugin_stateadr, off.m_timestep
+    m_attr, m_attradr = off.m_plugin_attr, off.m_plugin_attradr
+    keys_addr, params_addr, cap = registry.KEYS_ADDRESS, registry.PARAMS_ADDRESS, registry.CAPACITY
+
+    @njit(inline="always")
+    def lookup(m, d, instance):
+        """This instance's parameter row for model m (cached in d->plugin_data), or -1."""
+        table = u64_array(keys_addr, cap * registry.NKEY).reshape((cap, registry.NKEY))
+        slot = u64_array(field(d, d_data), instance + 1)
+        attr = field(m, m_attr) + i32_array(field(m, m_attradr), instance + 1)[instance]
+        r = int(slot[instance])
+        model = _addr(m)
+        if r >= cap or not row_matches(table, r, model, attr, instance):
+            r = find_row(table, model, attr, instance)
+            if r >= 0:
+                slot[instance] = r
+        return r
+
+    @njit(inline="always")
+    def joint_state(m, d, instance, r):
+        blk = f64_array(params_addr + 8 * BLOCK_LEN * r, BLOCK_LEN)
+        adr = i32_array(field(m, m_stateadr), instance + 1)[instance]
+        st = f64_array(field(d, d_state) + 8 * adr, NSTATE)
+        mq, md, lq, ld = int(blk[MQ]), int(blk[MD]), int(blk[LQ]), int(blk[LD])
+        qpos = f64_array(field(d, d_qpos), max(mq, lq) + 1)
+        qvel = f64_array(field(d, d_qvel), max(md, ld) + 1)
+        q = qpos[mq] if mq >= 0 else 0.0
+        th = qpos[lq] if lq >= 0 else 0.0
+        wq = qvel[md] if md >= 0 else 0.0
+        wth = qvel[ld] if ld >= 0 else 0.0
+        return blk, st, q, wq, th, wth
 
     @cfunc(types.int32(types.voidptr, types.int32))
     def nstate(m, instance):
@@ -127,15 +184,16 @@ def _compile_hot_callbacks(off: abi.Offsets):
 
     @cfunc(types.void(types.voidptr, types.voidptr, types.int32, types.int32))
     def compute(m, d, instance, capability):
-        blk = f64_array(u64_array(field(d, d_data), instance + 1)[instance], BLOCK_LEN)
-        adr = i32_array(field(m, m_stateadr), instance + 1)[instance]
-        st = f64_array(field(d, d_state) + 8 * adr, NSTATE)
-        qpos = f64_array(field(d, d_qpos), int(max(blk[MQ], blk[LQ])) + 1)
-        qvel = f64_array(field(d, d_qvel), int(max(blk[MD], blk[LD])) + 1)
-        frc = f64_array(field(d, d_frc), int(max(blk[MD], blk[LD])) + 1)
-        mq, md, lq, ld = int(blk[MQ]), int(blk[MD]), int(blk[LQ]), int(blk[LD])
-        fm, fl = joint_forces(blk, st, qpos[mq] if mq >= 0 else 0.0, qvel[md] if md >= 0 else 0.0,
-                              qpos[lq] if lq >= 0 else 0.0, qvel[ld] if ld >= 0 else 0.0)
+        r = lookup(m, d, instance)
+        if r < 0:
+            # Unregistered model: fail loudly (MuJoCo reports NaN in qacc) rather than guess.
+            frc = f64_array(field(d, d_frc), 1)
+            frc[0] = np.nan
+            return
+        blk, st, q, wq, th, wth = joint_state(m, d, instance, r)
+        fm, fl = joint_forces(blk, st, q, wq, th, wth)
+        md, ld = int(blk[MD]), int(blk[LD])
+        frc = f64_array(field(d, d_frc), max(md, ld) + 1)
         if md >= 0:
             frc[md] += fm
         if ld >= 0:
@@ -143,21 +201,16 @@ def _compile_hot_callbacks(off: abi.Offsets):
 
     @cfunc(types.void(types.voidptr, types.voidptr, types.int32))
     def advance(m, d, instance):
-        blk = f64_array(u64_array(field(d, d_data), instance + 1)[instance], BLOCK_LEN)
-        adr = i32_array(field(m, m_stateadr), instance + 1)[instance]
-        st = f64_array(field(d, d_state) + 8 * adr, NSTATE)
-        qpos = f64_array(field(d, d_qpos), int(max(blk[MQ], blk[LQ])) + 1)
-        qvel = f64_array(field(d, d_qvel), int(max(blk[MD], blk[LD])) + 1)
-        mq, md, lq, ld = int(blk[MQ]), int(blk[MD]), int(blk[LQ]), int(blk[LD])
-        joint_advance(blk, st, qpos[mq] if mq >= 0 else 0.0, qvel[md] if md >= 0 else 0.0,
-                      qpos[lq] if lq >= 0 else 0.0, qvel[ld] if ld >= 0 else 0.0, f64_at(m, m_dt))
+        r = lookup(m, d, instance)
+        if r < 0:
+            return
+        blk, st, q, wq, th, wth = joint_state(m, d, instance, r)
+        joint_advance(blk, st, q, wq, th, wth, f64_at(m, m_dt))
 
     return nstate, reset, compute, advance
 
 
 _INIT = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
-_DESTROY = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int)
-_COPY = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
 
 
 def register() -> None:
@@ -176,18 +229,16 @@ def register() -> None:
         plugin.nattribute = len(keys)
         plugin.attributes = attrs
         plugin.capabilityflags = int(mujoco.mjtPluginCapabilityBit.mjPLUGIN_PASSIVE)
-        init_cb, destroy_cb, copy_cb = _INIT(_init), _DESTROY(_destroy), _COPY(_copy)
+        init_cb = _INIT(_init)
         plugin.nstate = nstate.address
         plugin.reset = reset.address
         plugin.compute = compute.address
         plugin.advance = advance.address
         plugin.init = ctypes.cast(init_cb, ctypes.c_void_p).value
-        plugin.destroy = ctypes.cast(destroy_cb, ctypes.c_void_p).value
-        plugin.copy = ctypes.cast(copy_cb, ctypes.c_void_p).value
         lib.mjp_registerPlugin.restype = ctypes.c_int
         slot = lib.mjp_registerPlugin(ctypes.byref(plugin))
         if slot < 0:
             raise RuntimeError(f"MuJoCo refused to register plugin {PLUGIN_NAME!r}")
         # MuJoCo keeps raw pointers to all of these: they must live as long as the process.
         _registered[PLUGIN_NAME] = (plugin, attrs, keys, nstate, reset, compute, advance,
-                                    init_cb, destroy_cb, copy_cb)
+                                    init_cb)

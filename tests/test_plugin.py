@@ -1,0 +1,178 @@
+"""The engine plugin keeps its states in MuJoCo's state and its parameters in the MJCF."""
+from __future__ import annotations
+
+import copy
+import ctypes
+
+import mujoco
+import numpy as np
+import pytest
+from mujoco import rollout
+
+from mjjoint.assets import ArmSpec, build_arm, load_model
+from mjjoint.coupling import abi
+from mjjoint.coupling.layout import NSTATE
+from mjjoint.joint import JointParams
+from mjjoint.physics.transmission import Transmission
+from mjjoint.physics.twosep import TwoSEP
+
+FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+def _drive(model, data, nstep, seed=0):
+    """Band-limited random current, stepped with mj_step; returns the full state trajectory."""
+    rng = np.random.default_rng(seed)
+    current = np.repeat(rng.normal(0.0, 0.3, nstep // 20 + 1), 20)[:nstep]
+    out = np.empty((nstep, mujoco.mj_stateSize(model, FULL)))
+    for i in range(nstep):
+        data.ctrl[0] = current[i]
+        mujoco.mj_step(model, data)
+        mujoco.mj_getState(model, data, out[i], FULL)
+    return out, current
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model()
+
+
+def test_discovered_offsets_match_the_bindings(model):
+    data = mujoco.MjData(model)
+    off = abi.offsets()
+    assert abi._read_u64(data._address + off.d_plugin_state) == data.plugin_state.ctypes.data
+    assert abi._read_u64(data._address + off.d_plugin_data) == data.plugin_data.ctypes.data
+    assert abi._read_u64(model._address + off.m_plugin_stateadr) == model.plugin_stateadr.ctypes.data
+    assert ctypes.c_double.from_address(model._address + off.m_timestep).value == model.opt.timestep
+
+
+def test_states_live_in_plugin_state(model):
+    data = mujoco.MjData(model)
+    assert model.npluginstate == NSTATE
+    _drive(model, data, 400)
+    assert np.any(data.plugin_state != 0.0), "2SEP and Bouc-Wen states must evolve"
+    full = np.empty(mujoco.mj_stateSize(model, FULL))
+    mujoco.mj_getState(model, data, full, FULL)
+    np.testing.assert_array_equal(full[-NSTATE:], data.plugin_state)
+
+
+def test_save_restore_is_bit_identical(model):
+    data = mujoco.MjData(model)
+    _drive(model, data, 300, seed=1)
+    saved = np.empty(mujoco.mj_stateSize(model, FULL))
+    mujoco.mj_getState(model, data, saved, FULL)
+    first, _ = _drive(model, data, 500, seed=2)
+    mujoco.mj_setState(model, data, saved, FULL)
+    again, _ = _drive(model, data, 500, seed=2)
+    np.testing.assert_array_equal(first, again)
+
+
+def test_state_restore_matters(model):
+    """The check above is not vacuous: restoring only qpos/qvel (not the plugin state) differs."""
+    data = mujoco.MjData(model)
+    _drive(model, data, 300, seed=1)
+    spec = mujoco.mjtState.mjSTATE_PHYSICS
+    saved = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, saved, spec)
+    first, _ = _drive(model, data, 500, seed=2)
+    mujoco.mj_setState(model, data, saved, spec)
+    again, _ = _drive(model, data, 500, seed=2)
+    assert not np.array_equal(first, again)
+
+
+def test_copy_carries_states_and_parameters(model):
+    data = mujoco.MjData(model)
+    _drive(model, data, 300, seed=3)
+    twin = copy.copy(data)
+    np.testing.assert_array_equal(twin.plugin_state, data.plugin_state)
+    a, _ = _drive(model, data, 300, seed=4)
+    del data  # the copy must not depend on the original's memory
+    b, _ = _drive(model, twin, 300, seed=4)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_reset_and_keyframe_reset_clear_states(model):
+    data = mujoco.MjData(model)
+    _drive(model, data, 300, seed=5)
+    assert np.any(data.plugin_state != 0.0)
+    mujoco.mj_resetData(model, data)
+    np.testing.assert_array_equal(data.plugin_state, 0.0)
+    _drive(model, data, 300, seed=5)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    np.testing.assert_array_equal(data.plugin_state, 0.0)
+    # A reset run reproduces a fresh run exactly.
+    fresh = mujoco.MjData(model)
+    a, _ = _drive(model, data, 300, seed=6)
+    b, _ = _drive(model, fresh, 300, seed=6)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_unregistered_model_fails_loudly_not_silently(model):
+    """A model copy never registered gives NaN (MuJoCo warns), never another model's physics."""
+    from mjjoint.coupling import registry
+    twin = copy.copy(model)
+    saved = registry.keys.copy()
+    try:
+        registry.keys[:] = 0  # forget every model, as if twin had never been seen
+        data = mujoco.MjData(model)  # init registers `model` again, not `twin`
+        x0 = np.empty(mujoco.mj_stateSize(model, FULL))
+        mujoco.mj_getState(model, data, x0, FULL)
+        state, _ = rollout.rollout(twin, data, x0[None], np.zeros((1, 5, 1)))
+        assert np.isnan(state).any() or data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
+    finally:
+        registry.keys[:] = saved
+
+
+def test_threaded_rollout_of_two_parameter_sets_equals_sequential_runs():
+    soft = load_model(build_arm(joint=JointParams(transmission=Transmission(k1=3e3))))
+    sticky = load_model(build_arm(joint=JointParams(friction=TwoSEP(fc=0.15, fs=0.2))))
+    models = [soft, sticky]
+    rng = np.random.default_rng(7)
+    nstep = 2000
+    ctrl = np.repeat(rng.normal(0, 0.4, (2, nstep // 25, 1)), 25, axis=1)
+    x0 = []
+    for m in models:
+        d = mujoco.MjData(m)
+        s = np.empty(mujoco.mj_stateSize(m, FULL))
+        mujoco.mj_getState(m, d, s, FULL)
+        x0.append(s)
+    x0 = np.array(x0)
+    threaded, _ = rollout.rollout(models, [mujoco.MjData(soft), mujoco.MjData(soft)], x0, ctrl)
+    for i, m in enumerate(models):
+        single, _ = rollout.rollout(m, mujoco.MjData(m), x0[i:i + 1], ctrl[i:i + 1])
+        np.testing.assert_array_equal(threaded[i], single[0])
+    # Different MJCF parameters really give different physics side by side in one process.
+    assert np.abs(threaded[0, -1, 1:3] - threaded[1, -1, 1:3]).max() > 1e-3
+
+
+def test_rollout_matches_mj_step(model):
+    data = mujoco.MjData(model)
+    x0 = np.empty(mujoco.mj_stateSize(model, FULL))
+    mujoco.mj_getState(model, data, x0, FULL)
+    stepped, current = _drive(model, data, 600, seed=8)
+    rolled, _ = rollout.rollout(model, mujoco.MjData(model), x0[None], current[None, :, None])
+    np.testing.assert_array_equal(rolled[0], stepped)
+
+
+@pytest.mark.parametrize("config, needle", [
+    ({"friction.fc": "-1"}, "friction.fc"),
+    ({"transmission.k1": "abc"}, "transmission.k1"),
+    ({"friction": "lugre"}, "friction='lugre'"),
+    ({"hysteresis.mu": "1.5"}, "mu=1.5"),
+    ({"link_joint": "nosuchjoint"}, "nosuchjoint"),
+])
+def test_bad_plugin_config_is_a_one_line_error(config, needle):
+    spec = build_arm()
+    plugin = spec.plugins[0]
+    plugin.config = {**dict(plugin.config), **config}
+    with pytest.raises((ValueError, Exception)) as err:
+        load_model(spec)
+    message = str(err.value)
+    assert needle in message and "\n" not in message.strip()
+
+
+def test_locked_output_keeps_link_still():
+    sim_model = load_model(build_arm(ArmSpec(), JointParams(link_joint="world")))
+    data = mujoco.MjData(sim_model)
+    _drive(sim_model, data, 500, seed=9)
+    assert data.qpos[sim_model.joint("link").qposadr[0]] == 0.0
+    assert abs(data.qpos[sim_model.joint("motor").qposadr[0]]) > 0.0
