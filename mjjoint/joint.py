@@ -155,10 +155,11 @@ def config_keys() -> tuple[str, ...]:
 
 
 def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: float) -> float:
-    """Largest timestep at which the explicitly injected stiffnesses stay stable (w h < 1.5).
+    """Largest timestep at which the explicitly injected forces stay stable.
 
     The plugin's forces are explicit in MuJoCo's integrator, so each stiffness s acting on an
-    inertia J needs sqrt(s/J) h below the semi-implicit Euler limit of 2; 1.5 leaves margin.
+    inertia J needs sqrt(s/J) h below the semi-implicit Euler limit of 2, and each velocity
+    slope c needs c h / J < 2; both are held to 1.5 for margin.
     """
     check("motor_inertia", motor_inertia, 0.0, lo_open=True)
     check("link_inertia", link_inertia, 0.0, lo_open=True)
@@ -167,7 +168,13 @@ def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: flo
     k_max = tr.k1 + 2 * tr.k2 * 0.01 + 3 * tr.k3 * 0.01 ** 2  # tangent stiffness at 10 mrad
     j_red = 1.0 / (1.0 / link_inertia + 1.0 / (motor_inertia * n * n))
     rates = [(k_max / j_red) ** 0.5]
-    if isinstance(params.friction, TwoSEP):
-        f = params.friction
+    f = params.friction
+    if isinstance(f, TwoSEP):
         rates.append((2 * (f.fs + abs(f.asym)) * f.k / motor_inertia) ** 0.5)
+    elif isinstance(f, StaticFriction):
+        # a velocity slope c on inertia J is stable under explicit Euler for c h / J < 2
+        rates.append(0.75 * (max(f.fc, f.fs) + abs(f.asym)) / (f.v_eps * motor_inertia))
+    if params.load_friction is not None:
+        lf = params.load_friction
+        rates.append(0.75 * lf.fc / (lf.v_eps * link_inertia))
     return 1.5 / max(rates)

@@ -7,7 +7,6 @@ asset's classes, sensors and keyframe. MjSpec (not dm_control.mjcf) because it r
 """
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +20,9 @@ from ..params import check
 
 ASSETS_DIR = Path(os.environ.get("MJJOINT_ASSETS", Path(__file__).resolve().parents[2] / "assets" / "mjcf"))
 ARM_XML = "elastic_joint.xml"
+# History length reserved whenever a delay is on, so models differing only in the delay value
+# keep one size signature (mujoco.rollout batches need that).
+MAX_DELAY_SAMPLES = 24
 
 
 def scene_path(name: str = "scene.xml") -> Path:
@@ -44,7 +46,7 @@ class ArmSpec:
     motor_inertia: float = 5e-5     # [kg m^2] rotor + coupling + wave generator
     hub_inertia: float = 2e-3       # [kg m^2]
     k_m: float = 0.25               # motor torque constant [N m/A]
-    gravity: bool = True
+    gravity: float = 9.81           # [m/s^2]; 0 (or False) switches gravity off
     input_delay: float = 0.0        # [s] current-to-torque delay (native actuator delay)
     timestep: float = 5e-4          # [s]
 
@@ -61,7 +63,8 @@ class ArmSpec:
         check("hub_inertia", self.hub_inertia, 0.0, lo_open=True)
         check("k_m", self.k_m, 0.0, lo_open=True)
         check("timestep", self.timestep, 1e-6, 0.01)
-        check("input_delay", self.input_delay, 0.0, 0.1)
+        check("gravity", self.gravity, 0.0, 100.0)
+        check("input_delay", self.input_delay, 0.0, MAX_DELAY_SAMPLES * self.timestep)
 
     @property
     def link_inertia(self) -> float:
@@ -105,8 +108,7 @@ def build_arm(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), *,
     plugin = next(p for p in spec.plugins if p.plugin_name == PLUGIN_NAME)
     plugin.config = joint.to_config()
     spec.option.timestep = arm.timestep
-    if not arm.gravity:
-        spec.option.gravity = [0.0, 0.0, 0.0]
+    spec.option.gravity = [0.0, 0.0, -float(arm.gravity)]
     rotor = spec.body("rotor")
     rotor.inertia = [4e-4, arm.motor_inertia, 4e-4]
     spec.body("hub").inertia = [arm.hub_inertia] * 3
@@ -115,7 +117,7 @@ def build_arm(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), *,
     act.gear[0] = arm.k_m
     if arm.input_delay > 0:
         act.delay = arm.input_delay
-        act.nsample = int(math.ceil(arm.input_delay / arm.timestep)) + 2
+        act.nsample = MAX_DELAY_SAMPLES + 2
     # The home keyframe must match the (possibly new) number of joints.
     for key in spec.keys:
         key.qpos = np.zeros(2 + arm.segments)

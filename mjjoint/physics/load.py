@@ -25,7 +25,9 @@ class LoadFriction:
 
     fc: float = 0.5        # [N·m]: cross-roller output bearing, catalogue order for size 20
     viscous: float = 0.05  # d_f [N·m·s/rad]
-    v_eps: float = 1e-3    # [rad/s]: sign regularisation, below the 20-bit encoder's 6e-6 rad/ms
+    # Sign regularisation [rad/s]: explicit stability needs fc h/(v_eps J) < 2 on the link
+    # inertia (~0.18 kg m^2); 0.01 rad/s leaves margin for fc up to a few N m.
+    v_eps: float = 0.01
 
     def __post_init__(self) -> None:
         check("fc", self.fc, 0.0)

@@ -49,7 +49,10 @@ class StaticFriction:
     shape: float = 1.0    # Stribeck shape factor; same default as TwoSEP.shape
     sigma: float = 2e-4   # viscous coefficient; same default as TwoSEP.sigma
     asym: float = 0.0     # direction-dependent shift of both levels (friction asymmetry)
-    v_eps: float = 1e-3   # sign regularisation velocity: 1/500 of vs, well below any sliding speed
+    # Sign regularisation [rad/s]. The plugin's torques are explicit, so the slope fc/v_eps
+    # on the rotor inertia J must keep fc h/(v_eps J) < 2: 1 rad/s suits fc = 0.08 N m,
+    # J = 5e-5 kg m^2, h = 0.5 ms (and is 0.3 % of the 325 rad/s idling speed).
+    v_eps: float = 1.0
 
     def __post_init__(self) -> None:
         check("fc", self.fc, 0.0)
@@ -61,7 +64,7 @@ class StaticFriction:
         check("v_eps", self.v_eps, 0.0, lo_open=True)
 
     @classmethod
-    def coulomb(cls, fc: float, v_eps: float = 1e-3) -> "StaticFriction":
+    def coulomb(cls, fc: float, v_eps: float = 1.0) -> "StaticFriction":
         return cls(fc=fc, fs=fc, sigma=0.0, v_eps=v_eps)
 
     @classmethod

@@ -1,0 +1,1 @@
+"""System identification: model structures made of named effects, windowed prediction, fitting."""

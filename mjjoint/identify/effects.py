@@ -1,0 +1,214 @@
+"""The catalogue of physical effects a joint model may contain, each a real simulator term.
+
+A model structure is a set of effect names; the minimal structure ("inertias and gear") is a
+rigid gear between two inertias. Every effect switches on one term of the simulator (an
+ArmSpec or JointParams field) and brings its free parameters, each with bounds, a scale
+(log for positive magnitudes spanning decades) and an initial guess. Names are fixed: they
+are what ``diagnose`` reports.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+from ..assets import ArmSpec
+from ..joint import JointParams
+from ..physics.boucwen import BoucWen
+from ..physics.load import LoadFriction
+from ..physics.ripple import TorqueRipple
+from ..physics.stribeck import StaticFriction
+from ..physics.transmission import Transmission
+from ..physics.twosep import TwoSEP
+
+
+@dataclass(frozen=True)
+class Param:
+    """One free parameter: ``name`` is unique across effects (``<effect>.<symbol>``)."""
+
+    name: str
+    initial: float
+    lo: float
+    hi: float
+    log: bool = True
+    unit: str = ""
+
+    def to_unit(self, value: float) -> float:
+        """Map a physical value to the optimiser's coordinate."""
+        return math.log(value) if self.log else value
+
+    def from_unit(self, x: float) -> float:
+        return math.exp(x) if self.log else x
+
+
+Model = tuple[ArmSpec, JointParams]
+
+
+@dataclass(frozen=True)
+class Effect:
+    name: str
+    physics: str                       # what it is, in words (printed in reports)
+    params: tuple[Param, ...]
+    apply: Callable[[Model, dict[str, float]], Model]
+    requires: tuple[str, ...] = ()
+    excludes: tuple[str, ...] = ()
+
+
+def _friction(j: JointParams) -> StaticFriction | TwoSEP:
+    return j.friction if j.friction is not None else StaticFriction(fc=0.0, fs=0.0, sigma=0.0)
+
+
+def _set_friction(model: Model, **changes) -> Model:
+    arm, j = model
+    f = _friction(j)
+    if "fc" in changes and "fs" not in changes and f.fs <= f.fc:
+        changes["fs"] = changes["fc"]  # Coulomb alone: break-away equals sliding level
+    fields = {k: v for k, v in changes.items() if k in {x.name for x in dataclasses.fields(f)}}
+    return arm, dataclasses.replace(j, friction=dataclasses.replace(f, **fields))
+
+
+def _set_transmission(model: Model, **changes) -> Model:
+    arm, j = model
+    return arm, dataclasses.replace(j, transmission=dataclasses.replace(j.transmission, **changes))
+
+
+def _dynamic(model: Model, v: dict[str, float]) -> Model:
+    arm, j = model
+    f = _friction(j)
+    twosep = TwoSEP(fc=max(f.fc, 1e-6), fs=max(f.fs, f.fc, 1e-6), vs=f.vs, shape=f.shape,
+                    sigma=f.sigma, asym=f.asym, k=v["dynamic_friction.k"], b=v["dynamic_friction.b"])
+    return arm, dataclasses.replace(j, friction=twosep)
+
+
+def _stribeck(model: Model, v: dict[str, float]) -> Model:
+    fc = _friction(model[1]).fc
+    return _set_friction(model, fs=fc * v["stribeck_friction.ratio"], vs=v["stribeck_friction.vs"])
+
+
+def _asym(model: Model, v: dict[str, float]) -> Model:
+    return _set_friction(model, asym=_friction(model[1]).fc * v["friction_asymmetry.ratio"])
+
+
+def _hysteresis(model: Model, v: dict[str, float]) -> Model:
+    beta = 0.5 / v["transmission_hysteresis.x_u"]  # beta = gamma: x_u = 1/(beta + gamma)
+    bw = BoucWen(mu=v["transmission_hysteresis.mu"], beta=beta, gamma=beta)
+    return _set_transmission(model, hysteresis=bw)
+
+
+def _ripple(model: Model, v: dict[str, float]) -> Model:
+    a, b = v["torque_ripple.a"], v["torque_ripple.b"]
+    r = TorqueRipple(amplitude=math.hypot(a, b), harmonic=v["torque_ripple.harmonic"], phase=math.atan2(b, a))
+    return model[0], dataclasses.replace(model[1], ripple=r)
+
+
+def _arm(model: Model, **changes) -> Model:
+    return dataclasses.replace(model[0], **changes), model[1]
+
+
+def _load(model: Model, v: dict[str, float]) -> Model:
+    lf = LoadFriction(fc=v["load_friction.fc"], viscous=v["load_friction.viscous"])
+    return model[0], dataclasses.replace(model[1], load_friction=lf)
+
+
+EFFECTS: dict[str, Effect] = {e.name: e for e in (
+    Effect("coulomb_friction", "constant motor friction opposing motion, Fc sgn(w)",
+           (Param("coulomb_friction.fc", 0.05, 1e-4, 5.0, unit="N m"),),
+           lambda m, v: _set_friction(m, fc=v["coulomb_friction.fc"])),
+    Effect("viscous_friction", "motor friction proportional to speed, sigma w",
+           (Param("viscous_friction.sigma", 1e-4, 1e-7, 1e-1, unit="N m s/rad"),),
+           lambda m, v: _set_friction(m, sigma=v["viscous_friction.sigma"])),
+    Effect("stribeck_friction", "break-away above the Coulomb level at low speed (Eq. 15)",
+           (Param("stribeck_friction.ratio", 1.5, 1.0, 5.0, log=False),
+            Param("stribeck_friction.vs", 0.5, 1e-3, 100.0, unit="rad/s")),
+           _stribeck, requires=("coulomb_friction",)),
+    Effect("dynamic_friction", "2SEP pre-sliding hysteresis and frictional lag (Eqs. 11-14)",
+           (Param("dynamic_friction.k", 1000.0, 10.0, 1e5, unit="1/rad"),
+            Param("dynamic_friction.b", 50.0, 0.1, 1e4, unit="N m/rad")),
+           _dynamic, requires=("coulomb_friction",)),
+    Effect("friction_asymmetry", "direction-dependent friction level",
+           (Param("friction_asymmetry.ratio", 0.0, -0.9, 0.9, log=False),),
+           _asym, requires=("coulomb_friction",)),
+    Effect("load_friction", "output bearing friction Fc sgn(theta') + d_f theta'",
+           (Param("load_friction.fc", 0.1, 1e-4, 50.0, unit="N m"),
+            Param("load_friction.viscous", 0.01, 1e-5, 10.0, unit="N m s/rad")),
+           _load),
+    Effect("gravity", "gravity torque of the link, l g sin(theta) (Eq. 9)",
+           (Param("gravity.g", 9.81, 0.1, 50.0, unit="m/s^2"),),
+           lambda m, v: _arm(m, gravity=v["gravity.g"])),
+    Effect("linear_stiffness", "elastic gear: torsional spring K delta (Eq. 3)",
+           (Param("linear_stiffness.k1", 1e4, 1e2, 1e7, unit="N m/rad"),),
+           lambda m, v: _set_transmission(m, k1=v["linear_stiffness.k1"], damping=0.0)),
+    Effect("nonlinear_stiffness", "hardening gear stiffness, k3 delta^3 (Eq. 16)",
+           (Param("nonlinear_stiffness.k3", 1e8, 1e4, 1e13, unit="N m/rad^3"),),
+           lambda m, v: _set_transmission(m, k3=v["nonlinear_stiffness.k3"]),
+           requires=("linear_stiffness",)),
+    Effect("transmission_hysteresis", "Bouc-Wen hysteretic (elasto-plastic) gear stiffness (Eqs. 16-17)",
+           (Param("transmission_hysteresis.mu", 0.6, 0.02, 0.98, log=False),
+            Param("transmission_hysteresis.x_u", 2e-3, 1e-6, 0.1, unit="rad")),
+           _hysteresis, requires=("linear_stiffness",)),
+    Effect("transmission_damping", "viscous damping in the gear, D delta' (Eq. 18)",
+           (Param("transmission_damping.d", 1.0, 1e-3, 1e3, unit="N m s/rad"),),
+           lambda m, v: _set_transmission(m, damping=v["transmission_damping.d"]),
+           requires=("linear_stiffness",)),
+    Effect("backlash", "play in the gear: dead zone of the deflection (Fig. 3 (a))",
+           (Param("backlash.width", 1e-4, 1e-7, 1e-2, unit="rad"),),
+           lambda m, v: _set_transmission(m, backlash=v["backlash.width"]),
+           requires=("linear_stiffness",)),
+    Effect("torque_ripple", "position-periodic motor torque (cogging / eccentricity)",
+           (Param("torque_ripple.a", 0.0, -2.0, 2.0, log=False, unit="N m"),
+            Param("torque_ripple.b", 0.0, -2.0, 2.0, log=False, unit="N m")),
+           _ripple),
+    Effect("link_flexibility", "bending of the link rod (distributed mass-spring, Fig. 5 (b))",
+           (Param("link_flexibility.ei", 500.0, 1.0, 1e6, unit="N m^2"),),
+           lambda m, v: _arm(m, segments=4, rod_ei=v["link_flexibility.ei"])),
+    Effect("input_delay", "dead time between commanded and applied motor torque",
+           (Param("input_delay.delay", 1e-3, 0.0, 0.01, log=False, unit="s"),),
+           lambda m, v: _arm(m, input_delay=v["input_delay.delay"])),
+)}
+
+# Parameters of the minimal structure: inertias (the gear ratio is given, not fitted).
+BASE_PARAMS = (
+    Param("inertia.motor", 5e-5, 1e-7, 1e-1, unit="kg m^2"),
+    Param("inertia.link", 2e-3, 1e-5, 1e2, unit="kg m^2"),
+)
+
+SEED_EFFECTS = ("coulomb_friction", "viscous_friction", "stribeck_friction", "dynamic_friction",
+                "load_friction", "gravity", "linear_stiffness", "nonlinear_stiffness",
+                "transmission_hysteresis", "transmission_damping")
+
+
+def rigid_gear(arm: ArmSpec, gear_ratio: float) -> Transmission:
+    """A gear as stiff as the timestep allows, critically damped: the rigid joint of Eq. (2).
+
+    The plugin's torques are explicit, so the stiffest stable spring on the reduced inertia
+    J of the two sides has sqrt(k/J) h = 0.5, and D = J/h damps it critically while D h/J = 1
+    stays inside the explicit-damping limit of 2. The deflection left is ~1e-4 of a real
+    gear's, and T = k delta + D delta' is the torque the rigid gear transmits.
+    """
+    j_red = 1.0 / (1.0 / arm.link_inertia + 1.0 / (arm.motor_inertia * gear_ratio ** 2))
+    h = arm.timestep
+    return Transmission(gear_ratio=gear_ratio, k1=j_red * (0.5 / h) ** 2, k3=0.0, damping=j_red / h,
+                        hysteresis=None)
+
+
+def minimal_model(nominal: ArmSpec, gear_ratio: float) -> Model:
+    """Rigid gear, two inertias, nothing else: the start of ``--base minimal``."""
+    arm = dataclasses.replace(nominal, segments=0, gravity=0.0, input_delay=0.0)
+    joint = JointParams(friction=None, load_friction=None, ripple=None,
+                        transmission=rigid_gear(arm, gear_ratio))
+    return arm, joint
+
+
+def check_effects(names) -> tuple[str, ...]:
+    """Validate and order effect names (requirements first); unknown names fail in one line."""
+    names = list(dict.fromkeys(names))
+    unknown = [n for n in names if n not in EFFECTS]
+    if unknown:
+        raise ValueError(f"unknown effect {unknown[0]!r} (known: {', '.join(EFFECTS)})")
+    for n in names:
+        missing = [r for r in EFFECTS[n].requires if r not in names]
+        if missing:
+            raise ValueError(f"effect {n!r} needs {missing[0]!r} in the model as well")
+    order = list(EFFECTS)
+    return tuple(sorted(names, key=order.index))

@@ -1,0 +1,98 @@
+"""A model structure: which effects are on, and the values of all their parameters."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from ..assets import ArmSpec, build_arm, load_model
+from ..joint import JointParams
+from .effects import BASE_PARAMS, EFFECTS, Model, Param, check_effects, minimal_model
+
+
+@dataclass(frozen=True)
+class Structure:
+    """Effects switched on over the minimal model, with every free parameter's value.
+
+    ``settings`` holds discrete choices that are not fitted (e.g. the ripple harmonic, found
+    from the evidence); ``values`` maps each free parameter's name to its physical value.
+    """
+
+    effects: tuple[str, ...]
+    values: dict[str, float]
+    nominal: ArmSpec
+    gear_ratio: float
+    settings: dict[str, float] = field(default_factory=dict)
+
+    @classmethod
+    def create(cls, effects, nominal: ArmSpec, gear_ratio: float, values=None, settings=None) -> "Structure":
+        effects = check_effects(effects)
+        vals = {p.name: p.initial for p in _params(effects)}
+        vals["inertia.motor"] = nominal.motor_inertia
+        vals["inertia.link"] = nominal.hub_inertia
+        vals.update(values or {})
+        return cls(effects, vals, nominal, float(gear_ratio), dict(settings or {}))
+
+    @property
+    def params(self) -> tuple[Param, ...]:
+        return _params(self.effects)
+
+    def with_effect(self, name: str, values=None, settings=None) -> "Structure":
+        vals = dict(self.values)
+        vals.update({p.name: p.initial for p in EFFECTS[name].params if p.name not in vals})
+        vals.update(values or {})
+        return dataclasses.replace(self, effects=check_effects(self.effects + (name,)), values=vals,
+                                   settings={**self.settings, **(settings or {})})
+
+    def with_values(self, values: dict[str, float]) -> "Structure":
+        return dataclasses.replace(self, values={**self.values, **values})
+
+    # ---- optimiser coordinates ---------------------------------------------------------
+    def vector(self, names=None) -> np.ndarray:
+        ps = self._select(names)
+        return np.array([p.to_unit(np.clip(self.values[p.name], p.lo, p.hi) if p.log else self.values[p.name])
+                         for p in ps])
+
+    def from_vector(self, x: np.ndarray, names=None) -> "Structure":
+        ps = self._select(names)
+        return self.with_values({p.name: p.from_unit(float(v)) for p, v in zip(ps, x)})
+
+    def bounds(self, names=None) -> tuple[np.ndarray, np.ndarray]:
+        ps = self._select(names)
+        lo = np.array([p.to_unit(p.lo) if p.log else p.lo for p in ps])
+        hi = np.array([p.to_unit(p.hi) if p.log else p.hi for p in ps])
+        return lo, hi
+
+    def _select(self, names) -> tuple[Param, ...]:
+        ps = self.params
+        return ps if names is None else tuple(p for p in ps if p.name in names)
+
+    # ---- simulator ---------------------------------------------------------------------
+    def model_params(self) -> Model:
+        """The (ArmSpec, JointParams) this structure describes."""
+        model = minimal_model(self.nominal, self.gear_ratio)
+        model = (dataclasses.replace(model[0], motor_inertia=self.values["inertia.motor"],
+                                     hub_inertia=self.values["inertia.link"]), model[1])
+        v = {**self.values, **self.settings}
+        for name in self.effects:
+            model = EFFECTS[name].apply(model, v)
+        return model
+
+    def compile(self) -> mujoco.MjModel:
+        arm, joint = self.model_params()
+        return load_model(build_arm(arm, joint, scene=False))
+
+    def describe(self) -> dict:
+        return {"effects": list(self.effects),
+                "parameters": {k: float(v) for k, v in self.values.items()},
+                "settings": {k: float(v) for k, v in self.settings.items()}}
+
+
+def _params(effects) -> tuple[Param, ...]:
+    return BASE_PARAMS + tuple(p for e in effects for p in EFFECTS[e].params)
+
+
+def joint_params_of(structure: Structure) -> JointParams:
+    return structure.model_params()[1]

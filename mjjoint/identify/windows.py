@@ -1,0 +1,275 @@
+"""k-step-ahead prediction of a recording in short windows, batched through mujoco.rollout.
+
+Why windows: recordings are taken in closed loop, and an open-loop replay of the measured
+input drifts away from the measured motion (friction and gravity make free runs unstable
+integrators of small errors), so a whole-record simulation error mostly measures drift.
+Instead every window of ``length`` starts from the measured state (positions measured,
+velocities from a Savitzky-Golay derivative, flexible segments at rest, internal friction and
+hysteresis states set to their steady values for that motion) and predicts ``length`` ahead
+under the measured input. This is multiple shooting without continuity constraints: errors
+cannot accumulate beyond one window, yet each window is long enough (hundreds of ms) for
+dynamics — resonance, lag, hysteresis, play — to show. The first ``warmup`` of every window
+is left out of the cost while the internal states settle. One evaluation of all windows costs
+the same number of MuJoCo steps as one full-length rollout of the recording.
+
+Held-out data: windows are grouped in consecutive blocks and every ``holdout_every``-th block
+is kept out of fitting, so train and test cover the same kinds of excitation.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from mujoco import rollout as mj_rollout
+from scipy.signal import savgol_filter
+
+from ..coupling.kernels import joint_traces
+from ..coupling.layout import (ASYM, B, BW_A, BW_BETA, BW_GAMMA, BW_N, FC, FKIND, FRICTION_2SEP, FS, HYST,
+                               NSTATE, QR, SHAPE, SIGMA, VS, WSIGN, X, Z1, Z2)
+from ..coupling.plugin import register_model
+from ..physics.stribeck import steady_state
+from ..sim import FULL, joint_indices
+from .structure import Structure
+
+SIGNALS = ("q", "delta", "tau")
+
+
+@dataclass(frozen=True)
+class WindowDesign:
+    length: float = 0.25       # [s] prediction horizon of each window
+    warmup: float = 0.02       # [s] excluded from the cost at each window start
+    decimate: int = 2          # residual every k-th sample
+    block: int = 4             # windows per block for the train/held-out split
+    holdout_every: int = 4     # every 4th block is held out (25 %)
+
+    def __post_init__(self) -> None:
+        if not 0 < self.warmup < self.length:
+            raise ValueError(f"warmup={self.warmup} must lie in (0, length={self.length})")
+
+
+@dataclass
+class Measured:
+    """The recording on a uniform grid with what the windows need."""
+
+    t: np.ndarray
+    u: np.ndarray
+    q: np.ndarray
+    theta: np.ndarray
+    tau: np.ndarray | None
+    qd: np.ndarray
+    thetad: np.ndarray
+    gear_ratio: float
+    rate: float
+
+    @property
+    def delta(self) -> np.ndarray:
+        return self.q / self.gear_ratio - self.theta
+
+    @classmethod
+    def from_recording(cls, rec, gear_ratio: float) -> "Measured":
+        t = np.asarray(rec.t, float)
+        dt = float(np.median(np.diff(t)))
+        grid = t[0] + dt * np.arange(int(round((t[-1] - t[0]) / dt)) + 1)
+        cols = {k: np.interp(grid, t, np.asarray(getattr(rec, k), float)) for k in ("u", "q", "theta")}
+        tau = getattr(rec, "tau", None)
+        tau = None if tau is None else np.interp(grid, t, np.asarray(tau, float))
+        win = max(5, int(round(0.01 / dt)) | 1)  # ~10 ms, odd
+        deriv = lambda x: savgol_filter(x, win, 2, deriv=1, delta=dt)  # noqa: E731
+        return cls(t=grid, tau=tau, qd=deriv(cols["q"]), thetad=deriv(cols["theta"]),
+                   gear_ratio=float(gear_ratio), rate=1.0 / dt, **cols)
+
+
+class Predictor:
+    """Windowed predictions of one recording for any number of model structures."""
+
+    def __init__(self, measured: Measured, design: WindowDesign = WindowDesign(), nthread: int | None = None):
+        self.m = measured
+        self.design = design
+        n = int(round(design.length * measured.rate))
+        self.nwin_samples = n
+        starts = np.arange(0, len(measured.t) - n, n)
+        if len(starts) < 2 * design.holdout_every:
+            raise ValueError(f"recording of {measured.t[-1] - measured.t[0]:.2f} s is too short for "
+                             f"{design.length} s windows (need at least {2 * design.holdout_every})")
+        self.starts = starts
+        block_id = np.arange(len(starts)) // design.block
+        self.holdout = (block_id % design.holdout_every) == design.holdout_every - 1
+        w0 = int(round(design.warmup * measured.rate))
+        self.cols = np.arange(w0, n, design.decimate)  # sample offsets used in the cost
+        self.nthread = nthread if nthread is not None else _cores()
+        meas = self.measured_windows()
+        # Fixed per-signal normalisation: spread of each signal around its window mean.
+        self.scale = {}
+        for s, w in meas.items():
+            if w is None:
+                continue
+            spread = w - w.mean(axis=1, keepdims=True)
+            self.scale[s] = float(np.sqrt(np.mean(spread ** 2))) or 1.0
+        self.meas = meas
+        self.rollouts = 0.0  # in full-recording equivalents
+
+    # ---- measured ----------------------------------------------------------------------
+    def measured_windows(self) -> dict[str, np.ndarray | None]:
+        idx = self.starts[:, None] + np.arange(self.nwin_samples)[None, :]
+        m = self.m
+        return {"q": m.q[idx], "delta": m.delta[idx], "theta": m.theta[idx],
+                "tau": None if m.tau is None else m.tau[idx]}
+
+    @property
+    def signals(self) -> tuple[str, ...]:
+        return tuple(s for s in SIGNALS if self.meas.get(s) is not None)
+
+    # ---- prediction --------------------------------------------------------------------
+    def predict(self, structures: list[Structure], windows: np.ndarray | None = None) -> list[dict[str, np.ndarray]]:
+        """Predicted q, theta, delta, tau (windows x samples) for each structure."""
+        windows = np.arange(len(self.starts)) if windows is None else np.asarray(windows)
+        models, delays = [], []
+        for s in structures:
+            arm, joint = s.model_params()
+            delays.append(arm.input_delay)
+            models.append(_compile(arm, joint))
+        sig = {_signature(m) for m in models}
+        if len(sig) > 1:
+            return [self.predict([s], windows)[0] for s in structures]
+        for mod in models:
+            register_model(mod)  # a memoised model's registry row may have been recycled
+        x0 = np.concatenate([self._initial_states(mod, windows) for mod in models])
+        ctrl = np.concatenate([self._controls(mod, windows, d) for mod, d in zip(models, delays)])
+        batch_models = [mod for mod in models for _ in windows]
+        datas = [mujoco.MjData(models[0]) for _ in range(max(1, self.nthread))]
+        state, _ = mj_rollout.rollout(batch_models, datas, x0, ctrl, persistent_pool=True)
+        self.rollouts += len(structures) * len(windows) / len(self.starts)
+        sub = self._substeps(models[0])
+        out = []
+        for k, mod in enumerate(models):
+            st = state[k * len(windows):(k + 1) * len(windows)]
+            picked = st[:, sub - 1::sub][:, : self.nwin_samples - 1]
+            full = np.concatenate([x0[k * len(windows):(k + 1) * len(windows), None], picked], axis=1)
+            out.append(self._signals(mod, full))
+        return out
+
+    def _signals(self, model, full: np.ndarray) -> dict[str, np.ndarray]:
+        ji = joint_indices(model)[0]
+        nw, ns, nx = full.shape
+        flat = full.reshape(nw * ns, nx)
+        q = flat[:, 1 + ji.motor_qpos]
+        th = flat[:, 1 + ji.link_qpos]
+        qd = flat[:, 1 + model.nq + ji.motor_dof]
+        thd = flat[:, 1 + model.nq + ji.link_dof]
+        st = np.ascontiguousarray(flat[:, ji.state_start:ji.state_start + NSTATE])
+        tau, _, _ = joint_traces(ji.block, st, q, qd, th, thd)
+        shape = (nw, ns)
+        return {"q": q.reshape(shape), "theta": th.reshape(shape),
+                "delta": (q / ji.gear_ratio - th).reshape(shape), "tau": tau.reshape(shape)}
+
+    def _substeps(self, model) -> int:
+        sub = int(round(1.0 / (self.m.rate * model.opt.timestep)))
+        if sub < 1 or abs(sub * model.opt.timestep * self.m.rate - 1) > 1e-6:
+            raise ValueError(f"recording rate {self.m.rate:g} Hz is not 1/timestep divided by an integer")
+        return sub
+
+    def _initial_states(self, model, windows) -> np.ndarray:
+        ji = joint_indices(model)[0]
+        d = mujoco.MjData(model)
+        mujoco.mj_resetData(model, d)
+        template = np.empty(mujoco.mj_stateSize(model, FULL))
+        mujoco.mj_getState(model, d, template, FULL)
+        i0 = self.starts[windows]
+        x0 = np.tile(template, (len(windows), 1))
+        m = self.m
+        x0[:, 0] = 0.0
+        x0[:, 1 + ji.motor_qpos] = m.q[i0]
+        x0[:, 1 + ji.link_qpos] = m.theta[i0]
+        x0[:, 1 + model.nq + ji.motor_dof] = m.qd[i0]
+        x0[:, 1 + model.nq + ji.link_dof] = m.thetad[i0]
+        # Flexible segments of the link move with the hub at the window start.
+        x0[:, ji.state_start:ji.state_start + NSTATE] = _steady_internal_states(
+            ji.block, m.qd[i0], m.delta[i0])
+        return x0
+
+    def _controls(self, model, windows, delay: float) -> np.ndarray:
+        ji = joint_indices(model)[0]
+        sub = self._substeps(model)
+        h = model.opt.timestep
+        n = self.nwin_samples
+        # Step k of a window applies u at t0 + k h - delay (zero-order hold of the samples).
+        tk = self.m.t[self.starts[windows]][:, None] + h * np.arange((n - 1) * sub)[None, :] - delay
+        u = np.interp(tk, self.m.t, self.m.u) if delay > 0 else self.m.u[
+            np.minimum(self.starts[windows][:, None] + np.arange((n - 1) * sub)[None, :] // sub, len(self.m.u) - 1)]
+        ctrl = np.zeros((len(windows), (n - 1) * sub, model.nu))
+        ctrl[:, :, ji.actuator] = u / ji.k_m
+        return ctrl
+
+    # ---- cost --------------------------------------------------------------------------
+    def residuals(self, pred: dict[str, np.ndarray], windows: np.ndarray) -> np.ndarray:
+        parts = []
+        for s in self.signals:
+            e = (pred[s][:, self.cols] - self.meas[s][windows][:, self.cols]) / self.scale[s]
+            parts.append(e.ravel())
+        return np.concatenate(parts)
+
+    def nrmse(self, pred: dict[str, np.ndarray], windows: np.ndarray) -> dict[str, float]:
+        """Prediction NRMSE per signal: rms error over the signal's spread within windows."""
+        out = {}
+        for s in ("q", "theta", "delta", "tau"):
+            if self.meas.get(s) is None:
+                continue
+            meas = self.meas[s][windows][:, self.cols]
+            spread = meas - self.meas[s][windows].mean(axis=1, keepdims=True)[:, :1]
+            err = pred[s][:, self.cols] - meas
+            out[s] = float(np.sqrt(np.mean(err ** 2)) / max(np.sqrt(np.mean(spread ** 2)), 1e-300))
+        return out
+
+    @property
+    def train(self) -> np.ndarray:
+        return np.flatnonzero(~self.holdout)
+
+    @property
+    def test(self) -> np.ndarray:
+        return np.flatnonzero(self.holdout)
+
+
+def _steady_internal_states(blk, qd, delta):
+    """Friction states on the steady sliding branch, Bouc-Wen x on its loading branch."""
+    st = np.zeros((len(qd), NSTATE))
+    if blk[FKIND] == FRICTION_2SEP:
+        sg = np.sign(qd)
+        st[:, WSIGN] = sg
+        st[:, Z1] = sg * (blk[FC] + blk[ASYM] * sg)
+        st[:, QR] = 1e6  # far from the last reversal: pre-sliding saturated
+        s = np.array([steady_state(w, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM])
+                      for w in qd])
+        bw = blk[B] * np.abs(qd)
+        st[:, Z2] = np.where(bw > 0, (s - st[:, Z1]) / np.where(bw > 0, bw, 1.0), 0.0)
+    if blk[HYST] != 0.0:
+        xu = (blk[BW_A] / max(blk[BW_BETA] + blk[BW_GAMMA], 1e-300)) ** (1.0 / blk[BW_N])
+        st[:, X] = np.clip(delta, -xu, xu)
+    return st
+
+
+_MODEL_CACHE: dict = {}
+
+
+def _compile(arm, joint):
+    """Compile (memoised on the exact parameters: FD columns repeat across iterations)."""
+    from dataclasses import replace
+
+    from ..assets import build_arm, load_model
+    key = (replace(arm, input_delay=0.0), joint)
+    model = _MODEL_CACHE.get(key)
+    if model is None:
+        if len(_MODEL_CACHE) > 256:
+            _MODEL_CACHE.clear()
+        model = load_model(build_arm(key[0], joint, scene=False))
+        _MODEL_CACHE[key] = model
+    return model
+
+
+def _signature(model) -> tuple:
+    return (model.nq, model.nv, model.nu, model.na, model.nhistory, model.npluginstate, model.nsensordata)
+
+
+def _cores() -> int:
+    import os
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
