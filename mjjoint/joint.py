@@ -10,6 +10,7 @@ plugin's init parses the config with the same code, so the MJCF is the model.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 from .params import check, fields_dict
@@ -141,6 +142,7 @@ def _default_term(section: str):
 _DEFAULT_OFF = {"ripple": None}
 
 
+@functools.lru_cache(maxsize=None)
 def config_keys() -> tuple[str, ...]:
     """Every config attribute the plugin declares to MuJoCo."""
     keys = ["motor_joint", "link_joint"]
@@ -154,27 +156,34 @@ def config_keys() -> tuple[str, ...]:
     return tuple(keys)
 
 
-def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: float) -> float:
-    """Largest timestep at which the explicitly injected forces stay stable.
+RATED_DEFLECTION = 5e-3  # [rad]: a harmonic drive's deflection at rated torque, where stiffness is checked
+
+
+def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: float) -> tuple[float, str]:
+    """Largest stable timestep for the explicitly injected forces, and the term that sets it.
 
     The plugin's forces are explicit in MuJoCo's integrator, so each stiffness s acting on an
     inertia J needs sqrt(s/J) h below the semi-implicit Euler limit of 2, and each velocity
-    slope c needs c h / J < 2; both are held to 1.5 for margin.
+    slope c needs c h / J < 2; both are held to 1.5 for margin. ``link_inertia`` must be the
+    inertia rigidly behind the gear (the hub alone when the rod has flexible segments: at
+    these frequencies they decouple). The transmission is checked at ``RATED_DEFLECTION``.
     """
     check("motor_inertia", motor_inertia, 0.0, lo_open=True)
     check("link_inertia", link_inertia, 0.0, lo_open=True)
     tr = params.transmission
     n = tr.gear_ratio
-    k_max = tr.k1 + 2 * tr.k2 * 0.01 + 3 * tr.k3 * 0.01 ** 2  # tangent stiffness at 10 mrad
+    d = RATED_DEFLECTION
+    k_max = tr.k1 + 2 * tr.k2 * d + 3 * tr.k3 * d * d
     j_red = 1.0 / (1.0 / link_inertia + 1.0 / (motor_inertia * n * n))
-    rates = [(k_max / j_red) ** 0.5]
+    rates = {"transmission.k1/k3 (stiffness)": (k_max / j_red) ** 0.5,
+             "transmission.damping": 0.75 * tr.damping / j_red}
     f = params.friction
     if isinstance(f, TwoSEP):
-        rates.append((2 * (f.fs + abs(f.asym)) * f.k / motor_inertia) ** 0.5)
+        rates["friction.k (pre-sliding stiffness)"] = (2 * (f.fs + abs(f.asym)) * f.k / motor_inertia) ** 0.5
     elif isinstance(f, StaticFriction):
-        # a velocity slope c on inertia J is stable under explicit Euler for c h / J < 2
-        rates.append(0.75 * (max(f.fc, f.fs) + abs(f.asym)) / (f.v_eps * motor_inertia))
+        rates["friction.v_eps (Coulomb slope)"] = 0.75 * (max(f.fc, f.fs) + abs(f.asym)) / (f.v_eps * motor_inertia)
     if params.load_friction is not None:
         lf = params.load_friction
-        rates.append(0.75 * lf.fc / (lf.v_eps * link_inertia))
-    return 1.5 / max(rates)
+        rates["load_friction.v_eps (Coulomb slope)"] = 0.75 * lf.fc / (lf.v_eps * link_inertia)
+    term = max(rates, key=rates.get)
+    return 1.5 / rates[term], term

@@ -18,6 +18,7 @@ from .assets import load_model
 from .coupling.kernels import joint_traces
 from .coupling.layout import NSTATE, STATE_NAMES
 from .coupling.plugin import PLUGIN_NAME, block_for
+from .params import check
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
@@ -106,7 +107,7 @@ class Simulator:
         self.model = model if model is not None else load_model(None, **build)
         self.data = mujoco.MjData(self.model)
         self.joints = joint_indices(self.model)
-        self.sample_rate = float(sample_rate)
+        self.sample_rate = check("sample_rate", sample_rate, 0.0, lo_open=True)
         dt = self.model.opt.timestep
         sub = round(1.0 / (self.sample_rate * dt))
         if sub < 1 or abs(sub * dt * self.sample_rate - 1.0) > 1e-9:
@@ -157,6 +158,7 @@ class Simulator:
         x0 = self.initial_state() if initial_state is None else np.asarray(initial_state, float)
         ctrl = self.controls(u)
         state, _ = mj_rollout.rollout(self.model, self.data, x0[None], ctrl[None])
+        check_diverged(state[0], x0[0])
         picked = state[0, self.substeps - 1::self.substeps][:-1]
         return np.vstack([x0[None], picked])
 
@@ -179,6 +181,16 @@ class Simulator:
                              qd=qd.copy(), thetad=thd.copy(), tau=tau, friction=fric, load_friction=load,
                              states=st, gear_ratio=ji.gear_ratio, qpos=qpos.copy()))
         return out
+
+
+def check_diverged(states: np.ndarray, t0: float) -> None:
+    """Raise if MuJoCo hit an instability: it then resets the data, so time jumps back."""
+    t = np.concatenate([[t0], states[:, 0]])
+    bad = np.flatnonzero(np.diff(t) <= 0)  # index of the last good time before each reset
+    if bad.size or not np.isfinite(states).all():
+        at = t[bad[0]] if bad.size else t[1 + np.flatnonzero(~np.isfinite(states).all(axis=1))[0]]
+        raise ValueError(f"simulation diverged near t = {at:.4f} s: the input or a parameter makes the "
+                         "joint unstable at this timestep (reduce the input or the timestep)")
 
 
 def simulate(u: np.ndarray, model: mujoco.MjModel | None = None, sample_rate: float = 1000.0, **build):

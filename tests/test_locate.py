@@ -90,7 +90,8 @@ def test_operating_conditions_from_quantized_encoders(seed):
     np.testing.assert_allclose(c["q_mod"], np.mod(c["q_mod"], 2 * np.pi))
     # One reversal per true velocity sign change, none invented by quantization noise.
     reversals = true_reversals(ex.t, ex.qd)
-    found = ex.t[1:-1][(np.diff(c["reversal_proximity"])[:-1] < 0) & (np.diff(c["reversal_proximity"])[1:] > 0)]
+    slope = np.diff(c["reversal_proximity"])
+    found = ex.t[1:-1][(slope[:-1] < 0) & (slope[1:] > 0)]
     assert found.size == reversals.size
     np.testing.assert_allclose(found, reversals, atol=2e-3)
 
@@ -158,10 +159,13 @@ def test_residual_at_velocity_reversals_ranks_reversal_first(seed):
     reversals = true_reversals(ex.t, ex.qd)
     prox = np.min(np.abs(ex.t[:, None] - reversals[None, :]), axis=1)
     a = 10 ** rng.uniform(-2, 1)
-    r = a * np.exp(-((prox / 0.008) ** 2)) * rng.standard_normal(ex.t.size) + 0.02 * a * rng.standard_normal(ex.t.size)
+    bursts = np.exp(-((prox / 0.008) ** 2)) * rng.standard_normal(ex.t.size)
+    r = a * (bursts + 0.02 * rng.standard_normal(ex.t.size))
     top = scores_of(ex, r)[0]
     assert top.name == "reversal" and top.significant
-    assert re.fullmatch(r"near motor velocity reversals \(\d+% of residual energy in \d+% of the time\)", top.description)
+    assert re.fullmatch(
+        r"near motor velocity reversals \(\d+% of residual energy in \d+% of the time\)", top.description
+    )
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -189,7 +193,8 @@ def test_hysteresis_in_the_spring_ranks_first(seed):
     ex = experiment(rng)
     tau = 2000.0 * ex.delta  # spring torque, the measured signal whose model lacks hysteresis
     h = rng.uniform(0.05, 0.3) * np.std(tau)
-    r = h * np.tanh(ex.delta_d / (0.05 * np.max(np.abs(ex.delta_d)))) + 0.05 * h * rng.standard_normal(ex.t.size)
+    loop = np.tanh(ex.delta_d / (0.05 * np.max(np.abs(ex.delta_d))))  # friction in the spring
+    r = h * (loop + 0.05 * rng.standard_normal(ex.t.size))
     top = scores_of(ex, r, measured=tau + rng.normal(0, 0.01, ex.t.size))[0]
     assert top.name == "hysteresis" and top.significant
     assert "clockwise" in top.description
@@ -221,7 +226,7 @@ def test_damped_30_hz_oscillation_is_a_resonance_at_30_hz(seed):
     r = 0.01 * rng.standard_normal(ex.t.size)
     for t0 in np.sort(rng.uniform(0.0, 5.0, 4)):
         s = np.clip(ex.t - t0, 0.0, None)
-        tau = rng.uniform(0.05, 0.2)
+        tau = rng.uniform(0.08, 0.25)  # [s]: damping ratio 0.02-0.07, a lightly damped joint mode
         r += (ex.t >= t0) * rng.uniform(0.5, 2.0) * np.exp(-s / tau) * np.sin(2 * np.pi * 30.0 * s)
     by = by_name(scores_of(ex, r))
     assert by["resonance"].significant

@@ -11,7 +11,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 SAVGOL_WINDOW_S = 0.010   # [s]: long enough to average encoder steps, short next to joint dynamics
-SAVGOL_POLYORDER = 2      # quadratic: the lowest order whose slope is unbiased at a turning point
+SAVGOL_POLYORDER = 2      # quadratic: follows turning points without the noise gain of higher orders
 REVERSAL_SWING = 0.05     # a reversal must swing qd past ±5 % of its 95th-percentile speed
 
 

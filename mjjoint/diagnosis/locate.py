@@ -11,19 +11,22 @@ residual) the condition accounts for, in [0, 1]:
   the residual is spread evenly, 1 when all of it sits there;
 - regressions (sin/cos theta, harmonics of q, friction shapes, acceleration, delta): the
   fraction of residual variance explained by a least-squares fit on the regressors;
-- resonance: the residual power share in a +-10 % band around the peak, minus what the measured
-  signal's spectrum (or a flat one, whichever is larger) puts in that band;
+- resonance: the residual power share in a +-10 % band around a spectral peak, minus the larger
+  of what the measured signal's spectrum puts there (motion-shaped errors are no resonance) and
+  twice the residual's own local background (coloured noise is no resonance either);
 - lag: the fraction of residual variance removed by time-shifting the simulation;
 - hysteresis: (integral r d(delta))^2 / (integral r^2 |d(delta)| * integral |d(delta)|), the
   squared loop area of r against delta relative to the largest one this residual energy allows.
 
-Noise threshold: each score is also computed for `n_permutations` random permutations of the
-residual, which keep its values but remove any relation to time, motion or frequency. A score
-counts as significant when it exceeds both NULL_SIGMAS standard deviations above the mean of
-those null scores and `min_effect` (default 5 %). The first guards short records, where chance
-fits are large; the second guards long ones, where even an unstructured but slowly varying
-residual beats the permutations without pointing at any physics. When nothing is significant,
-the residual concentrates nowhere that was looked at.
+Noise threshold: each score is also computed for `n_permutations` null residuals holding the
+same values with any relation to the conditions removed: the residual cut into NULL_BLOCK_S
+blocks put back in random order (so that noise correlated over less than a block is not taken
+for structure), or, for resonance, whose statistic such blocks would keep, sample by sample.
+A score counts as significant when it exceeds both NULL_SIGMAS standard deviations above the
+mean of its null scores and `min_effect` (default 5 %). The first guards short records and
+smooth residuals, where chance fits are large; the second guards long ones, where a slowly
+wandering residual can beat the permutations without pointing at any physics. When nothing is
+significant, the residual concentrates nowhere that was looked at.
 """
 from __future__ import annotations
 
@@ -43,9 +46,11 @@ SMALL_DELTA_QUANTILE = 0.2  # "small |delta|" = the 20 % of samples closest to z
 MAX_HARMONIC = 40           # cycles per motor revolution searched for position-periodic effects
 STRIBECK_SPEEDS = (0.02, 0.05, 0.1, 0.2, 0.35)  # bump widths v, as fractions of the 95th-pct |qd|
 RESONANCE_BAND = 0.1        # relative half-width of the band a resonance's power is counted in
-RESONANCE_RESOLUTION_HZ = 0.5
+WELCH_SEGMENTS = 4          # a Welch segment is at most 1/4 of the record: >= 7 averaged at 50 % overlap
+RESONANCE_PEAK_RATIO = 2.0  # Welch scatter of a few segments reaches ~2x the true level
 MAX_LAG_S = 0.050           # [s]: larger shifts are timing faults, not missing physics
 NULL_SIGMAS = 4.0
+NULL_BLOCK_S = 0.2          # [s]: residual correlation shorter than this is treated as noise
 WINDOW_LEVEL = 0.25         # a window spans the stretch where the envelope stays above this x peak
 
 
@@ -72,7 +77,9 @@ class Window:
     energy_share: float
 
 
-def residual_windows(t: np.ndarray, r: np.ndarray, n_windows: int = 3, min_width: float = 0.1) -> list[Window]:
+def residual_windows(
+    t: np.ndarray, r: np.ndarray, n_windows: int = 3, min_width: float = 0.1
+) -> list[Window]:
     """Up to `n_windows` disjoint windows holding most of the residual energy, largest first.
 
     The envelope is r^2 averaged over `min_width` seconds. Windows are picked greedily around
@@ -119,7 +126,7 @@ class ConditionScore:
     score: float
     threshold: float  # noise threshold: score must exceed it to count
     description: str
-    params: Mapping[str, float] = field(default_factory=dict)  # e.g. k, frequency_hz, lag_ms
+    params: Mapping[str, float] = field(default_factory=dict)  # e.g. k, frequency_hz, lag_ms: plain numbers
 
     @property
     def significant(self) -> bool:
@@ -132,7 +139,7 @@ class ConditionScore:
             "threshold": float(self.threshold),
             "significant": self.significant,
             "description": self.description,
-            "params": {k: float(v) for k, v in self.params.items()},
+            "params": {k: v.item() if isinstance(v, np.generic) else v for k, v in self.params.items()},
         }
 
 
@@ -143,6 +150,7 @@ class _Condition:
     # parameters found for column 0.
     evaluate: Callable[[np.ndarray], tuple[np.ndarray, dict[str, float]]]
     describe: Callable[[float, dict[str, float]], str]
+    null: str = "block"  # how the null residuals are permuted: in blocks or sample by sample
 
 
 def _centered_basis(columns: np.ndarray) -> np.ndarray:
@@ -226,53 +234,77 @@ def _hysteresis(delta_d: np.ndarray) -> _Condition:
 
     def describe(score: float, p: dict[str, float]) -> str:
         turn = "clockwise" if p["direction"] > 0 else "counter-clockwise"
-        return f"hysteresis loop of r against delta, {turn} (area {score:.0%} of the largest for this residual)"
+        return (f"hysteresis loop of r against delta, {turn} "
+                f"(area {score:.0%} of the largest for this residual)")
 
     return _Condition("hysteresis", evaluate, describe)
 
 
-def _resonance(dt: float, measured: np.ndarray) -> _Condition:
+def _resonance(dt: float, measured: np.ndarray) -> _Condition | None:
+    """Resonance condition, or None when the record is too short to resolve one.
+
+    Searched from about 9 frequency bins (9 / (record length / WELCH_SEGMENTS)) up to Nyquist / 1.4,
+    where a band and its flanks fit: for 6 s at 1 kHz, about 9-357 Hz.
+    """
     fs = 1.0 / dt
+    if measured.size < WELCH_SEGMENTS:
+        return None
+    nperseg = 2 ** int(math.log2(measured.size / WELCH_SEGMENTS))
+    f = np.fft.rfftfreq(nperseg, dt)
+    idx = np.arange(f.size)
+    # Band +-RESONANCE_BAND around each bin, at least +-2 bins so one bin's scatter is averaged;
+    # flanks of three band half-widths beyond it on either side hold the background.
+    lo = np.minimum(np.searchsorted(f, f * (1 - RESONANCE_BAND)), idx - 2)
+    hi = np.maximum(np.searchsorted(f, f * (1 + RESONANCE_BAND), side="right") - 1, idx + 2)
+    flank_lo, flank_hi = idx - 4 * (idx - lo), idx + 4 * (hi - idx)
+    # Only bins whose flanks fit between DC (drift) and Nyquist (halved by Welch): a one-sided
+    # background would make any spectrum's edge look like a peak.
+    ok = (flank_lo >= 1) & (flank_hi <= f.size - 2)
+    if not ok.any():
+        return None
+    centers, lo, hi, flank_lo, flank_hi = idx[ok], lo[ok], hi[ok], flank_lo[ok], flank_hi[ok]
+
+    def band_share(p: np.ndarray) -> np.ndarray:
+        c = np.concatenate([np.zeros((1,) + p.shape[1:]), np.cumsum(p, axis=0)])
+        return np.divide(c[hi + 1] - c[lo], c[-1], out=np.zeros_like(c[lo]), where=c[-1] > 0)
+
+    share_m = band_share(welch(measured, fs=fs, nperseg=nperseg)[1])
 
     def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
-        nperseg = min(R.shape[0], 2 ** math.ceil(math.log2(fs / RESONANCE_RESOLUTION_HZ)))
-        f, power = welch(R, fs=fs, nperseg=nperseg, axis=0)
-        _, power_m = welch(measured, fs=fs, nperseg=nperseg)
-        idx = np.arange(f.size)
-        # Band +-RESONANCE_BAND around each bin, at least +-2 bins so one bin's scatter is averaged.
-        lo = np.maximum(np.minimum(np.searchsorted(f, f * (1 - RESONANCE_BAND)), idx - 2), 0)
-        hi = np.minimum(np.maximum(np.searchsorted(f, f * (1 + RESONANCE_BAND), side="right") - 1, idx + 2), f.size - 1)
-        total = power.sum(axis=0)
-
-        def band_share(p: np.ndarray) -> np.ndarray:
-            c = np.concatenate([np.zeros((1,) + p.shape[1:]), np.cumsum(p, axis=0)])
-            return (c[hi + 1] - c[lo]) / c[-1]
-
-        # A resonance is a peak above the residual's own smooth spectrum: the median level over
-        # four band widths either side (which the peak cannot dominate) is the background, so
-        # coloured noise is not a resonance.
-        wlo, whi = np.maximum(idx - 4 * (idx - lo), 0), np.minimum(idx + 4 * (hi - idx), f.size - 1)
-        level = np.stack([np.median(power[a:b + 1], axis=0) for a, b in zip(wlo, whi)])
-        background = level * (hi - lo + 1)[:, None] / total
-        excess = band_share(power) - np.maximum(band_share(power_m)[:, None], background)
-        excess[:3] = -np.inf  # near DC is drift, not resonance
+        power = welch(R, fs=fs, nperseg=nperseg, axis=0)[1]
+        # A resonance is a peak above the residual's own smooth spectrum: the background level is
+        # the geometric mean of the flanks' median levels (a straight line in log-log, so the
+        # slope of coloured noise is no peak), and power up to RESONANCE_PEAK_RATIO times it is
+        # Welch scatter.
+        level = np.stack([
+            np.sqrt(np.median(power[a:b], axis=0) * np.median(power[c + 1:d + 1], axis=0))
+            for a, b, c, d in zip(flank_lo, lo, hi, flank_hi)
+        ])
+        background = RESONANCE_PEAK_RATIO * level * (hi - lo + 1)[:, None] / power.sum(axis=0)
+        excess = band_share(power) - np.maximum(share_m[:, None], background)
         best = np.argmax(excess, axis=0)
         b = int(best[0])
-        j = lo[b] + int(np.argmax(power[lo[b]:hi[b] + 1, 0]))
-        freq = f[j]
-        if 0 < j < f.size - 1:  # parabolic peak interpolation on the log spectrum
-            y0, y1, y2 = np.log(power[j - 1:j + 2, 0] + 1e-300)
-            curv = y0 - 2 * y1 + y2
-            if curv < 0:
-                freq += 0.5 * (y0 - y2) / curv * (f[1] - f[0])
-        params = {"frequency_hz": float(freq), "band_lo_hz": float(f[lo[b]]), "band_hi_hz": float(f[hi[b]])}
+        # Centroid of the power above background, re-centred until it settles: a damped peak
+        # spans many bins, and in a few-segment Welch spectrum its highest bin wanders more.
+        freq = float(f[centers[b]])
+        for _ in range(3):
+            k = int(np.clip(round(freq / f[1]), centers[0], centers[-1])) - centers[0]
+            band = slice(lo[k], hi[k] + 1)
+            above = np.clip(power[band, 0] - level[k, 0], 0.0, None)
+            if not above.any():
+                break
+            freq = float(np.clip(f[band] @ above / above.sum(), f[lo[b]], f[hi[b]]))
+        params = {"frequency_hz": freq, "band_lo_hz": float(f[lo[b]]), "band_hi_hz": float(f[hi[b]])}
         return np.clip(excess[best, np.arange(R.shape[1])], 0.0, 1.0), params
 
     def describe(score: float, p: dict[str, float]) -> str:
         return (f"resonance at {p['frequency_hz']:.1f} Hz ({score:.0%} of residual power in "
-                f"{p['band_lo_hz']:.1f}-{p['band_hi_hz']:.1f} Hz beyond what the measured spectrum puts there)")
+                f"{p['band_lo_hz']:.1f}-{p['band_hi_hz']:.1f} Hz beyond its background "
+                "and the measured spectrum)")
 
-    return _Condition("resonance", evaluate, describe)
+    # Block permutation keeps a residual's spectrum above 1/block; only sample-wise
+    # permutation gives the flat spectrum a resonance is tested against.
+    return _Condition("resonance", evaluate, describe, null="sample")
 
 
 def _best_lag(measured: np.ndarray, simulated: np.ndarray, max_lag: int) -> np.ndarray:
@@ -315,18 +347,22 @@ def _lag(dt: float, measured: np.ndarray) -> _Condition:
         inner = np.arange(max_lag, measured.size - max_lag)
         # The variance removed is measured at the nearest whole-sample shift: interpolating a
         # fractional one would average residual noise away and look like a lag explaining it.
-        shifted = measured[inner, None] - sims[inner[:, None] - np.round(lags).astype(int), np.arange(R.shape[1])]
+        rows = inner[:, None] - np.round(lags).astype(int)
+        shifted = measured[inner, None] - sims[rows, np.arange(R.shape[1])]
         scores = 1.0 - np.var(shifted, axis=0) / np.var(R[inner], axis=0)
         return np.clip(scores, 0.0, 1.0), {"lag_ms": float(lags[0] * dt * 1e3)}
 
     def describe(score: float, p: dict[str, float]) -> str:
         order = "measured behind simulated" if p["lag_ms"] >= 0 else "measured ahead of simulated"
-        return f"lag of {abs(p['lag_ms']):.1f} ms, {order} (shifting removes {score:.0%} of residual variance)"
+        return (f"lag of {abs(p['lag_ms']):.1f} ms, {order} "
+                f"(shifting removes {score:.0%} of residual variance)")
 
     return _Condition("lag", evaluate, describe)
 
 
-def _conditions(conditions: Mapping[str, np.ndarray], dt: float | None, measured: np.ndarray | None) -> list[_Condition]:
+def _conditions(
+    conditions: Mapping[str, np.ndarray], dt: float | None, measured: np.ndarray | None
+) -> list[_Condition]:
     """The candidate conditions the available arrays allow."""
     c = {k: np.asarray(v, dtype=float) for k, v in conditions.items()}
     out = []
@@ -354,9 +390,15 @@ def _conditions(conditions: Mapping[str, np.ndarray], dt: float | None, measured
     if "delta_d" in c:
         out.append(_hysteresis(c["delta_d"]))
     if dt is not None and measured is not None:
-        out.append(_resonance(dt, measured))
-        out.append(_lag(dt, measured))
+        resonance = _resonance(dt, measured)
+        out += [_lag(dt, measured)] + ([] if resonance is None else [resonance])
     return out
+
+
+def _block_permutation(x: np.ndarray, block: int, rng: np.random.Generator) -> np.ndarray:
+    """x cut into blocks of `block` samples (at a random phase), put back in random order."""
+    pieces = np.split(x, np.arange(int(rng.integers(block)), x.size, block))
+    return np.concatenate([pieces[i] for i in rng.permutation(len(pieces))])
 
 
 def condition_scores(
@@ -374,7 +416,8 @@ def condition_scores(
 
     `conditions` holds per-sample arrays as from `features.operating_conditions`; conditions
     whose arrays are missing are skipped. Resonance and lag need the time base `t` and the
-    `measured` signal. A residual without variance concentrates nowhere: the list is empty.
+    `measured` signal; without `t` the null also permutes sample by sample, as block length is
+    a time. A residual without variance concentrates nowhere: the list is empty.
     """
     r = np.asarray(r, dtype=float)
     for key, v in conditions.items():
@@ -391,10 +434,14 @@ def condition_scores(
     if not np.any(r0):
         return []
     rng = np.random.default_rng(seed)
-    R = np.column_stack([r0] + [rng.permutation(r0) for _ in range(n_permutations)])
+    block = 1 if dt is None else max(1, round(NULL_BLOCK_S / dt))
+    nulls = {
+        "block": np.column_stack([r0] + [_block_permutation(r0, block, rng) for _ in range(n_permutations)]),
+        "sample": np.column_stack([r0] + [rng.permutation(r0) for _ in range(n_permutations)]),
+    }
     scores = []
     for cond in _conditions(conditions, dt, measured):
-        values, params = cond.evaluate(R)
+        values, params = cond.evaluate(nulls[cond.null])
         null = values[1:]
         threshold = min_effect
         if null.size > 1:
@@ -473,7 +520,8 @@ def locate(
             nrmse=nrmse(m, s),
             windows=tuple(residual_windows(t, r, n_windows, min_width)),
             scores=tuple(condition_scores(
-                r, conditions, t=t, measured=m, n_permutations=n_permutations, min_effect=min_effect, seed=seed,
+                r, conditions, t=t, measured=m,
+                n_permutations=n_permutations, min_effect=min_effect, seed=seed,
             )),
         )
     worst = max(per_signal, key=lambda k: per_signal[k].nrmse)

@@ -39,7 +39,7 @@ class Param:
         return math.log(value) if self.log else value
 
     def from_unit(self, x: float) -> float:
-        return math.exp(x) if self.log else x
+        return math.exp(min(x, 700.0)) if self.log else x  # an infinite interval stays finite
 
 
 Model = tuple[ArmSpec, JointParams]

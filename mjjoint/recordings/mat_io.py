@@ -2,21 +2,30 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
+import numpy as np
 import scipy.io
 
 from .arrays import ArrayTable
 from .errors import RecordingError
+from .mat_guard import check_mat_v5
 
 
 def read_mat_table(path: Path) -> ArrayTable:
-    """All top-level variables of a .mat file; the file is opened read-only."""
+    """All top-level variables of a .mat file; the file is only read."""
     try:
-        with path.open("rb") as f:
-            data = scipy.io.loadmat(f)
-    except NotImplementedError:  # loadmat's answer to v7.3, which is HDF5
-        raise RecordingError(f"{path}: MATLAB v7.3 files are not supported; re-save with save(..., '-v7')") from None
+        data = path.read_bytes()
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    try:
+        check_mat_v5(data)
+    except ValueError as exc:
+        raise RecordingError(f"{path}: not a readable MATLAB v5 file: {exc}") from None
+    try:
+        variables = scipy.io.loadmat(io.BytesIO(data))
     except Exception as exc:  # corrupt input surfaces as many low-level error types
         raise RecordingError(f"{path}: not a readable MATLAB v5 file ({type(exc).__name__}: {exc})") from None
-    return ArrayTable(str(path), {k: v for k, v in data.items() if not k.startswith("__")})
+    # Unreadable variables come back as message strings; asarray lets the column check name them.
+    return ArrayTable(str(path), {k: np.asarray(v) for k, v in variables.items() if not k.startswith("__")})

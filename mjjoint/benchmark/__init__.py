@@ -1,0 +1,1 @@
+"""Concealed-effect benchmark: closed-loop lab recordings from a richer truth, scored blind."""

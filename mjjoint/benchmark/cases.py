@@ -1,0 +1,87 @@
+"""Concealed-effect cases: a truth with one effect more than the base model handed to the tool.
+
+Every truth parameter is drawn per seed (the base's within +-20 % of the defaults, the
+concealed effect's from a documented range), so nothing downstream can be tuned to one value.
+The tool only ever sees the recording CSV and the base effect list; ``Case.truth_value`` is
+for scoring afterwards.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..assets import ArmSpec
+from ..identify.effects import EFFECTS
+from ..identify.structure import Structure
+
+BASE = ("coulomb_friction", "viscous_friction", "load_friction", "gravity", "linear_stiffness",
+        "transmission_damping")
+GEAR_RATIO = 160.0
+NOMINAL = ArmSpec(segments=0)
+
+# effect -> (parameter that is scored, sampler of the concealed effect's truth values)
+CONCEALED = {
+    "backlash": ("backlash.width", lambda r: {"backlash.width": r.uniform(2e-4, 6e-4)}),
+    "torque_ripple": ("torque_ripple.amplitude", lambda r: _ripple(r)),
+    "input_delay": ("input_delay.delay", lambda r: {"input_delay.delay": r.uniform(1.5e-3, 4e-3)}),
+    "gravity": ("gravity.g", lambda r: {}),
+    "transmission_hysteresis": ("transmission_hysteresis.mu",
+                                lambda r: {"transmission_hysteresis.mu": r.uniform(0.3, 0.6),
+                                           "transmission_hysteresis.x_u": r.uniform(1e-3, 3e-3)}),
+    "dynamic_friction": ("dynamic_friction.b", lambda r: {"dynamic_friction.k": r.uniform(500, 2000),
+                                                          "dynamic_friction.b": r.uniform(20, 100)}),
+    "friction_asymmetry": ("friction_asymmetry.ratio",
+                           lambda r: {"friction_asymmetry.ratio": r.choice([-1, 1]) * r.uniform(0.25, 0.5)}),
+    "none": (None, lambda r: {}),
+}
+
+
+def _ripple(r: np.random.Generator) -> dict:
+    amp, phase = r.uniform(0.01, 0.03), r.uniform(-np.pi, np.pi)
+    return {"torque_ripple.a": amp * np.cos(phase), "torque_ripple.b": amp * np.sin(phase),
+            "_harmonic": float(r.choice([3, 4, 6, 8]))}
+
+
+@dataclass(frozen=True)
+class Case:
+    effect: str            # the concealed effect ("none": negative control)
+    seed: int
+    truth: Structure
+    base_effects: tuple[str, ...]
+
+    def truth_value(self) -> float | None:
+        name = CONCEALED[self.effect][0]
+        if name is None:
+            return None
+        if name == "torque_ripple.amplitude":
+            return float(np.hypot(self.truth.values["torque_ripple.a"], self.truth.values["torque_ripple.b"]))
+        return float(self.truth.values[name])
+
+
+def make_case(effect: str, seed: int) -> Case:
+    if effect not in CONCEALED:
+        raise ValueError(f"unknown concealed case {effect!r} (allowed: {', '.join(CONCEALED)})")
+    r = np.random.default_rng(1000 + seed)
+    base_values = {}
+    for name in BASE:
+        for p in EFFECTS[name].params:
+            base_values[p.name] = p.initial * r.uniform(0.8, 1.2)
+    # Base magnitudes of the lab joint (defaults of the effect catalogue are generic).
+    base_values.update({"coulomb_friction.fc": 0.03 * r.uniform(0.8, 1.2),
+                        "viscous_friction.sigma": 2e-4 * r.uniform(0.8, 1.2),
+                        "load_friction.fc": 0.3 * r.uniform(0.8, 1.2),
+                        "load_friction.viscous": 0.05 * r.uniform(0.8, 1.2),
+                        "gravity.g": 9.81,
+                        "transmission_damping.d": 2.0 * r.uniform(0.8, 1.2)})
+    extra = dict(CONCEALED[effect][1](r))
+    settings = {}
+    if "_harmonic" in extra:
+        settings["torque_ripple.harmonic"] = extra.pop("_harmonic")
+    truth_effects = BASE + (() if effect in ("none", "gravity") else (effect,))
+    arm = dataclasses.replace(NOMINAL, motor_inertia=NOMINAL.motor_inertia * r.uniform(0.9, 1.1),
+                              tip_mass=NOMINAL.tip_mass * r.uniform(0.9, 1.1))
+    truth = Structure.create(truth_effects, arm, GEAR_RATIO, {**base_values, **extra}, settings)
+    base_effects = tuple(e for e in BASE if e != effect)
+    return Case(effect, seed, truth, base_effects)

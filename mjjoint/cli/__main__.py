@@ -1,0 +1,4 @@
+"""``python -m mjjoint.cli``, the same as the ``mjjoint`` script."""
+from . import main
+
+raise SystemExit(main())

@@ -1,0 +1,152 @@
+"""``mjjoint simulate``: drive a model with an excitation and write CSV, PNG and/or Rerun files."""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..excitation import EXCITATIONS, FromFile, excitation_fields
+from ..modelfile import ModelFile, from_section, load_model_file
+from ..params import check
+from ..sim import Simulator, Trace
+from .chunked import simulate_chunked
+from .errors import CliError
+
+DEFAULT_OUT = Path("out/simulate")
+DEFAULT_DURATION = 5.0  # [s]
+DEFAULT_EXCITATION = "chirp"
+
+EPILOG = """\
+examples:
+  mjjoint simulate                         5 s chirp on the shipped arm -> out/simulate/trace.{csv,png,rrd}
+  mjjoint simulate --excitation step --amplitude 0.1 --duration 3 --csv step.csv --plot step.png
+  mjjoint simulate --excitation impulse --rate 2000 --param width=0.002 --rrd impulse.rrd
+  mjjoint simulate --excitation chirp --param f_start=20 --param sweep=log --spawn
+  mjjoint simulate --model examples/stiff_linear.yaml --excitation multisine --seed 3
+  mjjoint simulate --excitation file --file torque.csv --csv response.csv
+
+excitation fields (--param KEY=VALUE):
+""" + "\n".join(f"  {name:10s} " + ", ".join(f"{k}={'(required)' if v is dataclasses.MISSING else v}"
+                                              for k, v in excitation_fields(cls).items())
+                for name, cls in EXCITATIONS.items())
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "simulate", help="simulate the joint under a motor-torque excitation",
+        description="Simulate the elastic joint driven by a motor torque u [N m] and write the traces\n"
+                    "(CSV header t,u,q,theta,tau in SI units; q motor side, theta link side).",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    m = p.add_argument_group("model")
+    m.add_argument("--model", type=Path, metavar="PATH",
+                   help="model file (.toml, .yaml, .yml) or MJCF (.xml); default: the shipped arm")
+    m.add_argument("--rate", type=float, metavar="HZ",
+                   help="sample rate; default: the model file's [simulation] sample_rate, else 1000")
+    e = p.add_argument_group("excitation")
+    e.add_argument("--excitation", choices=list(EXCITATIONS),
+                   help=f"default: {DEFAULT_EXCITATION} (file when --file is given)")
+    e.add_argument("--amplitude", type=float, metavar="NM", help="amplitude [N m at the motor] (peak for multisine)")
+    e.add_argument("--duration", type=float, metavar="S",
+                   help=f"simulated time; default {DEFAULT_DURATION:g} s (file: the file's length)")
+    e.add_argument("--file", type=Path, metavar="CSV", help="CSV with columns t and u, for --excitation file")
+    e.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
+                   help="set an excitation field (repeatable), e.g. f_start=20, sweep=log, width=0.002")
+    e.add_argument("--seed", type=int, help="random seed of the multisine phases")
+    o = p.add_argument_group("output (without any of these: trace.csv, trace.png and trace.rrd in --out)")
+    o.add_argument("--csv", type=Path, metavar="PATH", help="CSV with header t,u,q,theta,tau")
+    o.add_argument("--plot", type=Path, metavar="PATH", help="PNG of q/N and theta, delta, tau, friction")
+    o.add_argument("--rrd", type=Path, metavar="PATH", help="Rerun recording of every signal and the arm in 3D")
+    o.add_argument("--spawn", action="store_true", help="stream to a newly spawned Rerun viewer")
+    o.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR", help=f"default: {DEFAULT_OUT}")
+    p.set_defaults(handler=run)
+
+
+def _parse_value(key: str, text: str, default: Any) -> Any:
+    """A --param value typed like the field's default (text for text fields and unknown keys)."""
+    kind = type(default)
+    if kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            raise CliError(f"--param {key}={text!r} must be {'an integer' if kind is int else 'a number'}") from None
+    return text
+
+
+def excitation_from_args(args: argparse.Namespace) -> tuple[str, Any]:
+    """(name, excitation) the options describe; the excitation validated by its own dataclass."""
+    name = args.excitation or ("file" if args.file is not None else DEFAULT_EXCITATION)
+    cls = EXCITATIONS[name]
+    fields = excitation_fields(cls)
+    values: dict[str, Any] = {}
+    for item in args.param:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise CliError(f"--param {item!r} must be KEY=VALUE")
+        values[key] = _parse_value(key, text.strip(), fields.get(key))
+    for flag, key, value in (("--amplitude", "amplitude", args.amplitude),
+                             ("--file", "path", None if args.file is None else str(args.file)),
+                             ("--seed", "seed", args.seed)):
+        if value is not None:
+            if key not in fields:
+                raise CliError(f"{flag} does not apply to --excitation {name} (its fields: {', '.join(fields)})")
+            values[key] = value
+    if cls is FromFile and "path" not in values:
+        raise CliError("--excitation file needs --file PATH")
+    return name, from_section(cls, values, name)
+
+
+def output_paths(args: argparse.Namespace) -> dict[str, Path]:
+    """Requested outputs (kind -> path), checked writable before any simulation time is spent."""
+    chosen = {"csv": args.csv, "plot": args.plot, "rrd": args.rrd}
+    if not any(chosen.values()) and not args.spawn:
+        chosen = {"csv": args.out / "trace.csv", "plot": args.out / "trace.png", "rrd": args.out / "trace.rrd"}
+    out = {kind: path for kind, path in chosen.items() if path is not None}
+    for path in out.values():
+        if path.is_dir():
+            raise CliError(f"{path}: is a directory, not a file")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+            raise CliError(f"{path}: permission denied")
+    return out
+
+
+def _summary(name: str, excitation, trace: Trace, rate: float) -> str:
+    amp = getattr(excitation, "amplitude", None)
+    what = f"{name}" + (f" {amp:g} N m" if amp is not None else f" {excitation.path}")
+    return (f"simulated {trace.t[-1] + 1 / rate:g} s of {what} at {rate:g} Hz: "
+            f"theta in [{np.degrees(trace.theta.min()):.3g}, {np.degrees(trace.theta.max()):.3g}] deg, "
+            f"max |delta| {1e3 * np.abs(trace.delta).max():.3g} mrad, max |tau| {np.abs(trace.tau).max():.3g} N m")
+
+
+def run(args: argparse.Namespace) -> int:
+    model = load_model_file(args.model) if args.model is not None else ModelFile()
+    name, excitation = excitation_from_args(args)
+    rate = model.sample_rate if args.rate is None else check("--rate", args.rate, 0.0, lo_open=True)
+    duration = args.duration
+    if duration is None:
+        duration = excitation.duration if isinstance(excitation, FromFile) else DEFAULT_DURATION
+    u = excitation.sample(rate, duration)
+    outputs = output_paths(args)
+    sim = Simulator(model.compile(), sample_rate=rate)
+    if len(sim.joints) != 1:
+        raise CliError(f"{args.model}: has {len(sim.joints)} joint instances; simulate drives single-joint models")
+    trace = simulate_chunked(sim, u)[0]
+
+    if "csv" in outputs:
+        trace.to_csv(outputs["csv"])
+    if "plot" in outputs:
+        from .plot import plot_trace  # matplotlib only when a plot is asked for
+        plot_trace(trace, outputs["plot"], title=f"mjjoint simulate: {excitation}")
+    if "rrd" in outputs or args.spawn:
+        from ..viz.rerun_log import log_traces  # rerun only when asked for
+        log_traces(trace, model=sim.model, recording_name=f"simulate {name}",
+                   rrd_path=outputs.get("rrd"), spawn=args.spawn)
+    print(_summary(name, excitation, trace, rate))
+    if outputs:
+        print("wrote " + ", ".join(str(p) for p in outputs.values()))
+    return 0

@@ -1,0 +1,194 @@
+"""Plain-Python reference implementations of every numba kernel, written from Ruderman (2012).
+
+Each function is derived from the chapter's equation (cited in its docstring) and the
+integration scheme the kernel's module documents, not from the kernel's code: the tests
+compare the compiled kernels against these on random inputs. The composite ``joint_forces``
+and ``joint_advance`` take a ``JointParams`` and a named state, so they also check the
+parameter packing. Only ``math`` is used; no numba, no numpy.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from mjjoint.joint import JointParams
+from mjjoint.physics.stribeck import StaticFriction
+from mjjoint.physics.twosep import TwoSEP
+
+
+def sgn(v: float) -> float:
+    return float(v > 0.0) - float(v < 0.0)
+
+
+# ---- Stribeck curve, Eq. 15 -------------------------------------------------------------
+def stribeck_level(w, fc, fs, vs, shape):
+    """|s(w)| = Fc + (Fs - Fc) exp(-|w/Vs|^delta), Eq. 15 without its sign."""
+    return fc + (fs - fc) * math.exp(-(abs(w) / vs) ** shape)
+
+
+def steady_state(w, fc, fs, vs, shape, sigma, asym):
+    """S(w) = s(w) + sigma w (Eqs. 14-15); asym raises both levels in the direction of motion."""
+    d = sgn(w)
+    return d * stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape) + sigma * w
+
+
+def static_friction(w, fc, fs, vs, shape, sigma, asym, v_eps):
+    """S(w) with every sgn(w) replaced by tanh(w / v_eps)."""
+    d = math.tanh(w / v_eps)
+    return d * stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape) + sigma * w
+
+
+# ---- 2SEP, Eqs. 11-15 -------------------------------------------------------------------
+def twosep_force(z1, z2, w, b):
+    """F = A z1 + B |w| z2 with A = 1 (Eq. 11)."""
+    return 1.0 * z1 + b * abs(w) * z2
+
+
+def _presliding_primitive(s, k):
+    """A primitive of K exp(-K|s|) in s: Eq. 12 reads dz1 = |Omega| K exp(-K|q_r|) dq_r."""
+    return sgn(s) * (1.0 - math.exp(-k * abs(s)))
+
+
+def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, asym):
+    """One step of length h at constant velocity w: (z1, z2, Omega, q_r, sgn of last motion).
+
+    A reversal (w of the opposite sign to the last motion, or the first motion) stores
+    Omega = sgn(w) Fc - F (Eq. 13, F being the model's force at that instant) and restarts q_r.
+    z1 follows Eq. 12 integrated exactly along q_r; z2 follows Eq. 14 by backward Euler, with
+    F = z1 + B|w| z2 taken at the end of the step and |S| the magnitude of the Stribeck curve
+    plus sigma|w| (the curve's value Fs at w = 0 keeps Eq. 14 finite there).
+    """
+    d = sgn(w)
+    if d != 0 and d != wsign:
+        omega = abs(d * (fc + asym * d) - twosep_force(z1, z2, w, b))
+        qr = 0.0
+        wsign = d
+    qr_end = qr + w * h
+    z1 = z1 + abs(omega) * (_presliding_primitive(qr_end, k) - _presliding_primitive(qr, k))
+    s_abs = stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape) + sigma * abs(w)
+    target = steady_state(w, fc, fs, vs, shape, sigma, asym)
+    # Backward Euler: z2' = z2 + h (S - z1' - B|w| z2') / |S|, linear in z2'.
+    z2 = (z2 + h * (target - z1) / s_abs) / (1.0 + h * b * abs(w) / s_abs)
+    return z1, z2, omega, qr_end, wsign
+
+
+# ---- Hysteretic stiffness, Eqs. 16-17 ----------------------------------------------------
+def _stiffness_polynomial(v, k1, k2, k3):
+    """sum_i k_i sgn(v)|v|^i for i = 1, 2, 3."""
+    return sum(ki * sgn(v) * abs(v) ** i for i, ki in ((1, k1), (2, k2), (3, k3)))
+
+
+def spring_potential(v, k1, k2, k3):
+    """Integral of the stiffness polynomial from 0 to v: k1 v^2/2 + k2 |v|^3/3 + k3 v^4/4."""
+    return k1 * v * v / 2.0 + k2 * abs(v) ** 3 / 3.0 + k3 * v ** 4 / 4.0
+
+
+def restoring_torque(delta, x, mu, k1, k2, k3):
+    """Gamma(delta, x) = mu sum k_i sgn(delta)|delta|^i + (1 - mu) sum k_i sgn(x)|x|^i (Eq. 16)."""
+    return mu * _stiffness_polynomial(delta, k1, k2, k3) + (1.0 - mu) * _stiffness_polynomial(x, k1, k2, k3)
+
+
+def boucwen_rate(x, d_sign, a, beta, gamma, n):
+    """dx/d delta of Eq. 17 for motion in direction d_sign: A - (beta sgn(dd) sgn(x) + gamma)|x|^n."""
+    return a - (beta * d_sign * sgn(x) + gamma) * abs(x) ** n
+
+
+def boucwen_step(x, ddelta, a, beta, gamma, n):
+    """One Newton iteration, started at x, of backward Euler x' = x + dd g(x') for Eq. 17.
+
+    g is piecewise smooth in x; its derivative -(beta sgn(dd) sgn(x) + gamma) n |x|^(n-1) sgn(x)
+    is taken as 0 at x = 0. Should the Newton denominator vanish, the explicit step is used.
+    """
+    if ddelta == 0.0:
+        return x
+    d = sgn(ddelta)
+    g = boucwen_rate(x, d, a, beta, gamma, n)
+    slope = 0.0 if x == 0.0 else -(beta * d * sgn(x) + gamma) * n * abs(x) ** (n - 1.0) * sgn(x)
+    jac = 1.0 - ddelta * slope
+    return x + ddelta * g / jac if jac > 1e-12 else x + ddelta * g
+
+
+# ---- Transmission, Eqs. 7 and 18 with backlash ---------------------------------------------
+def engaged(delta, backlash):
+    """Deflection beyond the dead zone [-b/2, b/2] (the teeth are in contact only outside it)."""
+    half = backlash / 2.0
+    return max(delta - half, 0.0) + min(delta + half, 0.0)
+
+
+def transmission_torque(delta, ddelta, x, mu, k1, k2, k3, damping, backlash):
+    """T = Gamma(delta_e, x) + D delta' while the teeth are engaged (Eq. 18), 0 inside the gap."""
+    de = engaged(delta, backlash)
+    if backlash > 0.0 and abs(delta) <= backlash / 2.0:
+        return 0.0
+    return restoring_torque(de, x, mu, k1, k2, k3) + damping * ddelta
+
+
+# ---- Load bearing and motor ripple ----------------------------------------------------------
+def bearing_friction(w, fc, viscous, v_eps):
+    """F_c sgn(w) + d_f w (Sec. 2.3) with sgn regularised by tanh(w / v_eps)."""
+    return fc * math.tanh(w / v_eps) + viscous * w
+
+
+def ripple_torque(q, amplitude, harmonic, phase):
+    """A sin(k q + phi): k cycles per motor revolution."""
+    return amplitude * math.sin(harmonic * q + phase)
+
+
+# ---- The joint: Eqs. 4, 6, 18 and the load balance ---------------------------------------
+@dataclass
+class JointState:
+    z1: float = 0.0
+    z2: float = 0.0
+    omega: float = 0.0
+    q_r: float = 0.0
+    w_sign: float = 0.0
+    x: float = 0.0
+
+    def as_list(self) -> list[float]:
+        return [self.z1, self.z2, self.omega, self.q_r, self.w_sign, self.x]
+
+
+def _motor_friction(p: JointParams, s: JointState, wq: float) -> float:
+    f = p.friction
+    if isinstance(f, TwoSEP):
+        return twosep_force(s.z1, s.z2, wq, f.b)
+    if isinstance(f, StaticFriction):
+        return static_friction(wq, f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps)
+    return 0.0
+
+
+def _transmitted(p: JointParams, s: JointState, q, wq, theta, wtheta) -> float:
+    t = p.transmission
+    n = t.gear_ratio
+    return transmission_torque(q / n - theta, wq / n - wtheta, s.x, t.mu, t.k1, t.k2, t.k3,
+                               t.damping, t.backlash)
+
+
+def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta) -> tuple[float, float]:
+    """(motor, link) generalised forces: u side m q'' = -T/N - f + r, link M theta'' = T - F_L."""
+    t = _transmitted(p, s, q, wq, theta, wtheta)
+    motor = -t / p.transmission.gear_ratio - _motor_friction(p, s, wq)
+    if p.ripple is not None:
+        motor += ripple_torque(q, p.ripple.amplitude, p.ripple.harmonic, p.ripple.phase)
+    link = t
+    if p.load_friction is not None:
+        lf = p.load_friction
+        link -= bearing_friction(wtheta, lf.fc, lf.viscous, lf.v_eps)
+    return motor, link
+
+
+def joint_advance(p: JointParams, s: JointState, q, wq, theta, wtheta, h) -> JointState:
+    """States after a semi-implicit Euler step that ended at (q, theta) with velocities (wq, wtheta)."""
+    out = JointState(*s.as_list())
+    f = p.friction
+    if isinstance(f, TwoSEP):
+        out.z1, out.z2, out.omega, out.q_r, out.w_sign = twosep_step(
+            s.z1, s.z2, s.omega, s.q_r, s.w_sign, wq, h, f.fc, f.fs, f.vs, f.shape, f.sigma, f.k, f.b, f.asym)
+    hyst = p.transmission.hysteresis
+    if hyst is not None:
+        n = p.transmission.gear_ratio
+        bl = p.transmission.backlash
+        end = q / n - theta
+        start = (q - wq * h) / n - (theta - wtheta * h)
+        out.x = boucwen_step(s.x, engaged(end, bl) - engaged(start, bl), hyst.a, hyst.beta, hyst.gamma, hyst.n)
+    return out
