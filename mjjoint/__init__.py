@@ -1,0 +1,33 @@
+"""mjjoint: elastic robot joints in MuJoCo with 2SEP friction and Bouc-Wen hysteresis, and a
+diagnosis that names the physics a model is missing from a recording.
+
+Three lines to a simulated recording::
+
+    import mjjoint
+    trace = mjjoint.simulate(mjjoint.Chirp().sample(1000, 5))
+    trace.to_csv("chirp.csv")
+"""
+from .assets import ArmSpec, build_arm, load_model, scene_path
+from .coupling.plugin import register, register_model
+from .excitation import EXCITATIONS, Chirp, FromFile, Impulse, Multisine, Step
+from .joint import GROUND, JointParams, stable_timestep
+from .modelfile import ModelFile, dump_model_file, load_model_file
+from .physics.boucwen import BoucWen
+from .physics.load import LoadFriction
+from .physics.ripple import TorqueRipple
+from .physics.stribeck import StaticFriction
+from .physics.transmission import Transmission
+from .physics.twosep import TwoSEP
+from .recordings import MultiRecording, Recording, RecordingError, read_recording, write_recording
+from .sim import Simulator, Trace, simulate
+from .viz import log_traces
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "ArmSpec", "BoucWen", "Chirp", "EXCITATIONS", "FromFile", "GROUND", "Impulse", "JointParams",
+    "LoadFriction", "ModelFile", "MultiRecording", "Multisine", "Recording", "RecordingError",
+    "Simulator", "StaticFriction", "Step", "TorqueRipple", "Trace", "Transmission", "TwoSEP",
+    "build_arm", "dump_model_file", "load_model", "load_model_file", "log_traces", "read_recording",
+    "register", "register_model", "scene_path", "simulate", "stable_timestep", "write_recording",
+]

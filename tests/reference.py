@@ -40,8 +40,9 @@ def static_friction(w, fc, fs, vs, shape, sigma, asym, v_eps):
 
 # ---- 2SEP, Eqs. 11-15 -------------------------------------------------------------------
 def twosep_force(z1, z2, w, b):
-    """F = A z1 + B |w| z2 with A = 1 (Eq. 11)."""
-    return 1.0 * z1 + b * abs(w) * z2
+    """F = A z1 + B |w| z2 with A = 1 (Eq. 11); the lag term only while it opposes the motion."""
+    lag = b * abs(w) * z2
+    return 1.0 * z1 + (lag if sgn(z2) == sgn(w) != 0 else 0.0)
 
 
 def _presliding_primitive(s, k):
@@ -53,14 +54,15 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
     """One step of length h at constant velocity w: (z1, z2, Omega, q_r, sgn of last motion).
 
     A reversal (w of the opposite sign to the last motion, or the first motion) stores
-    Omega = sgn(w) Fc - F (Eq. 13, F being the model's force at that instant) and restarts q_r.
+    Omega = sgn(w) Fc - F (Eq. 13) with F = z1, the force at the instant w crosses zero,
+    and restarts q_r.
     z1 follows Eq. 12 integrated exactly along q_r; z2 follows Eq. 14 by backward Euler, with
     F = z1 + B|w| z2 taken at the end of the step and |S| the magnitude of the Stribeck curve
     plus sigma|w| (the curve's value Fs at w = 0 keeps Eq. 14 finite there).
     """
     d = sgn(w)
     if d != 0 and d != wsign:
-        omega = abs(d * (fc + asym * d) - twosep_force(z1, z2, w, b))
+        omega = abs(d * (fc + asym * d) - z1)
         qr = 0.0
         wsign = d
     qr_end = qr + w * h
@@ -94,18 +96,29 @@ def boucwen_rate(x, d_sign, a, beta, gamma, n):
 
 
 def boucwen_step(x, ddelta, a, beta, gamma, n):
-    """One Newton iteration, started at x, of backward Euler x' = x + dd g(x') for Eq. 17.
+    """Backward Euler x' = x + dd g(x') for Eq. 17, one Newton iteration per piece, with the
+    increment cut into pieces of at most x_u/10 (x_u = (A/(beta+gamma))^(1/n)).
 
-    g is piecewise smooth in x; its derivative -(beta sgn(dd) sgn(x) + gamma) n |x|^(n-1) sgn(x)
-    is taken as 0 at x = 0. Should the Newton denominator vanish, the explicit step is used.
+    At x = 0 the piece enters the branch sgn(x) = sgn(dd); g's x-derivative
+    -(beta sgn(dd) sgn(x) + gamma) n |x|^(n-1) sgn(x) is then that branch's (0 for n > 1).
     """
     if ddelta == 0.0:
         return x
-    d = sgn(ddelta)
-    g = boucwen_rate(x, d, a, beta, gamma, n)
-    slope = 0.0 if x == 0.0 else -(beta * d * sgn(x) + gamma) * n * abs(x) ** (n - 1.0) * sgn(x)
-    jac = 1.0 - ddelta * slope
-    return x + ddelta * g / jac if jac > 1e-12 else x + ddelta * g
+    pieces = 1
+    if beta + gamma > 0.0:
+        xu = (a / (beta + gamma)) ** (1.0 / n)
+        pieces = min(int(abs(ddelta) * a / (0.1 * xu)) + 1, 10000)
+    dd = ddelta / pieces
+    d = sgn(dd)
+    for _ in range(pieces):
+        sx = sgn(x) if x != 0.0 else d
+        g = boucwen_rate(x, d, a, beta, gamma, n)
+        if x == 0.0 and n != 1.0:
+            slope = 0.0
+        else:
+            slope = -(beta * d * sx + gamma) * n * abs(x) ** (n - 1.0) * sx
+        x = x + dd * g / (1.0 - dd * slope)
+    return x
 
 
 # ---- Transmission, Eqs. 7 and 18 with backlash ---------------------------------------------

@@ -109,7 +109,7 @@ BAD_ARGS = [
     (lambda p: ["simulate", "--csv", str(p)], "is a directory"),
     (lambda p: ["simulate", "--csv", str(p / "file.txt" / "x.csv")], "file.txt"),
     (lambda p: ["simulate", "--rate", "3000", "--csv", str(p / "x.csv")], "sample_rate=3000"),
-    (lambda p: ["simulate", "--amplitude", "0.4", "--duration", "1.5", "--csv", str(p / "x.csv")], "diverged"),
+    (lambda p: ["simulate", "--amplitude", "1.5", "--duration", "1.5", "--csv", str(p / "x.csv")], "diverged"),
     (lambda p: [], "required: COMMAND"),
     (lambda p: ["fit-everything"], "invalid choice"),
 ]

@@ -37,7 +37,8 @@ LOSSLESS = dict(friction=None, load_friction=None, transmission=Transmission(dam
 
 def arm_simulator(dt: float, segment_damping: float = 0.0, **joint) -> tuple[Simulator, JointParams]:
     params = JointParams(**{**LOSSLESS, **joint})
-    sim = Simulator(arm=ArmSpec(segment_damping=segment_damping, timestep=dt), joint=params, sample_rate=RATE)
+    arm = ArmSpec(segment_damping=segment_damping, timestep=dt)
+    sim = Simulator(load_model(build_arm(arm, params)), sample_rate=RATE)
     sim.model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     return sim, params
 
@@ -172,11 +173,6 @@ def test_linear_spring_matches_a_native_mujoco_spring():
 
 
 # ---- with losses: never gains energy, and loses it overall ---------------------------------
-XFAIL_2SEP = pytest.mark.xfail(
-    strict=True, raises=AssertionError, reason="core physics issue: the 2SEP lag term B|w|z2 is not passive; with the "
-    "default B = 50 and a 5e-5 kg m^2 rotor, a reversal with z2 of the old sign kicks the motor "
-    "(energy rises by ~1e-2 J within 1 ms; see the test report)")
-
 LOSSES = {
     "segment_damping": dict(segment_damping=0.5),
     "transmission_damping": dict(transmission=Transmission(hysteresis=None)),
@@ -210,7 +206,7 @@ def integrator_noise(dt: float, backlash: float) -> tuple[float, float]:
     return float(np.max(np.diff(e))), abs(net_change(e))
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=XFAIL_2SEP) if n in ("2sep", "all") else n for n in LOSSES])
+@pytest.mark.parametrize("name", list(LOSSES))
 def test_losses_never_add_energy(name):
     """Each loss alone and all together: no rise beyond integrator noise, and a net decrease.
 

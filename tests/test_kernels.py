@@ -41,19 +41,19 @@ def finite(lo: float, hi: float) -> st.SearchStrategy[float]:
 # ---- parameter strategies (validated dataclasses, so every draw is a legal model) ---------
 @st.composite
 def twoseps(draw) -> TwoSEP:
-    fc = draw(finite(1e-3, 1.0))
-    return TwoSEP(fc=fc, fs=draw(finite(1e-3, 2.0)), vs=draw(finite(1e-3, 10.0)),
+    fc, fs = draw(finite(1e-3, 1.0)), draw(finite(1e-3, 2.0))
+    return TwoSEP(fc=fc, fs=fs, vs=draw(finite(1e-3, 10.0)),
                   shape=draw(finite(0.1, 5.0)), sigma=draw(finite(0.0, 1e-2)),
                   k=draw(finite(1.0, 1e5)), b=draw(finite(0.0, 500.0)),
-                  asym=fc * draw(finite(-0.99, 0.99)))
+                  asym=min(fc, fs) * draw(finite(-0.99, 0.99)))
 
 
 @st.composite
 def statics(draw) -> StaticFriction:
-    fc = draw(finite(0.0, 1.0))
-    return StaticFriction(fc=fc, fs=draw(finite(0.0, 2.0)), vs=draw(finite(1e-3, 10.0)),
+    fc, fs = draw(finite(0.0, 1.0)), draw(finite(0.0, 2.0))
+    return StaticFriction(fc=fc, fs=fs, vs=draw(finite(1e-3, 10.0)),
                           shape=draw(finite(0.1, 5.0)), sigma=draw(finite(0.0, 1e-2)),
-                          asym=fc * draw(finite(-1.0, 1.0)), v_eps=draw(finite(1e-5, 1.0)))
+                          asym=min(fc, fs) * draw(finite(-1.0, 1.0)), v_eps=draw(finite(1e-5, 1.0)))
 
 
 @st.composite
@@ -400,7 +400,8 @@ def test_boucwen_dissipation_is_non_negative(p, k1, k3, ratio):
 
     The plastic part is passive with storage (1 - mu) V(x) / A: what remains of the cycle
     integral is (1 - mu)/A times the integral of Gamma_p(x)(beta |dd| + gamma sgn(x) dd)|x|^n.
-    Only the trapezoid's error can make it negative, a third order term in the increment.
+    Only discretisation error can make it negative: thin loops (amplitude << x_u, or
+    beta = gamma = 0) may come out at -1e-6 of the elastic energy at the amplitude, no lower.
     """
     t = Transmission(k1=k1, k3=k3)
     xu = p.x_ultimate
@@ -418,8 +419,6 @@ def saturation_bound(p: BoucWen) -> float:
 @given(p=boucwens(), steps=st.lists(finite(-0.1, 0.1), min_size=1, max_size=40))
 @example(p=BoucWen(), steps=[0.01])            # x = 0, one increment beyond x_u
 @example(p=BoucWen(), steps=[-0.002, 0.01])    # unload through zero in one step
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason="core bug: boucwen_step overshoots x_u when one increment "
-                   "crosses x = 0 or, for n > 1, starts near it (see the test report)")
 def test_boucwen_x_within_saturation_bound_for_any_increment(p, steps):
     """|x| <= (A/(beta+gamma))^(1/n) whatever the increments (boucwen.py's docstring claim)."""
     x = 0.0

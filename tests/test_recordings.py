@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
+import io
+import re
 import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.io
+import scipy.sparse
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -369,6 +372,21 @@ def test_corrupt_container_is_rejected(tmp_path: Path, suffix: str) -> None:
     assert (path.read_bytes(), path.stat().st_mtime_ns) == before
 
 
+@pytest.mark.parametrize(
+    ("header", "expected"),
+    [
+        (b"MATLAB 7.3 MAT-file".ljust(124) + b"\x00\x02IM", "v7.3 (HDF5) files are not supported"),
+        (b"MATLAB 5.0 MAT-file".ljust(124) + b"\x00\x01XX", "no MAT v5 header"),
+        (b"MATLAB 5.0", "shorter than the 128-byte MAT header"),
+    ],
+)
+def test_mat_header_problems(tmp_path: Path, header: bytes, expected: str) -> None:
+    path = tmp_path / "rec.mat"
+    path.write_bytes(header + bytes(64))
+    with pytest.raises(RecordingError, match=re.escape(expected)):
+        read_recording(path)
+
+
 def test_npz_length_mismatch_names_the_column(tmp_path: Path) -> None:
     path = tmp_path / "rec.npz"
     np.savez(path, t=np.arange(N) * DT, u=np.zeros(N - 1), q=np.zeros(N), theta=np.zeros(N))
@@ -437,3 +455,37 @@ def test_mutated_csv_reads_or_raises_recording_error(edits: list[tuple[str, int,
         else:
             assert rec.n >= 10 and all(np.isfinite(x).all() for x in rec.signals().values())
         assert path.read_bytes() == data
+
+
+def _valid_mat() -> bytes:
+    t = np.arange(12) * DT
+    buf = io.BytesIO()
+    scipy.io.savemat(
+        buf,
+        {
+            "t": t, "u": t, "q": t[None, :], "theta": np.vstack([t, t]),
+            "name": "axis", "cfg": {"kp": 2.0, "tag": "a"}, "parts": np.array([t[:2], "ab"], dtype=object),
+            "z": np.array([1 + 2j]), "sp": scipy.sparse.csc_matrix(np.eye(2)),
+        },
+    )
+    return buf.getvalue()
+
+
+VALID_MAT = _valid_mat()
+# Type codes, class numbers and sizes are where a corrupt MAT file used to crash scipy's reader.
+mat_byte = st.one_of(st.integers(0, 255), st.sampled_from([0, 1, 5, 6, 8, 10, 11, 14, 15, 19, 20, 255]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(edits=st.lists(st.tuples(st.integers(0, len(VALID_MAT) - 1), mat_byte), min_size=1, max_size=4))
+def test_mutated_mat_reads_or_raises_recording_error(edits: list[tuple[int, int]]) -> None:
+    data = bytearray(VALID_MAT)
+    for pos, value in edits:
+        data[pos] = value
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "fuzz.mat"
+        path.write_bytes(data)
+        try:
+            read_recording(path, columns={"theta": "theta[1]"})
+        except RecordingError as err:
+            assert "\n" not in str(err)

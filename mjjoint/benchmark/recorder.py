@@ -116,6 +116,6 @@ def record(arm: ArmSpec, joint: JointParams, program: LabProgram = LabProgram(),
         data.ctrl[ji.actuator] = u / ji.k_m
         for _ in range(sub):
             mujoco.mj_step(model, data)
-        if not np.isfinite(data.qpos).all():
-            raise RuntimeError(f"truth simulation diverged at t = {data.time:.3f} s")
+        if data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:  # MuJoCo reset the data
+            raise RuntimeError(f"truth simulation diverged near t = {cols['t'][i]:.3f} s")
     return cols

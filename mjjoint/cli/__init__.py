@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 from .errors import PROG, ArgumentParser, CliError, guarded
 
-COMMANDS = ("simulate",)
+COMMANDS = ("simulate", "fit", "diagnose")
 
 __all__ = ["COMMANDS", "CliError", "build_parser", "main"]
 

@@ -6,13 +6,12 @@ the stitched states equal one unchunked rollout bit for bit.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 
-import mujoco
 import numpy as np
 from tqdm import tqdm
 
+from ..coupling.mjlog import mujoco_log_silenced
 from ..sim import Simulator, Trace
 
 CHUNK_SAMPLES = 10_000  # ~0.1 s of wall time per chunk on the default arm
@@ -29,38 +28,12 @@ def rollout_chunked(sim: Simulator, u: np.ndarray, chunk: int = CHUNK_SAMPLES,
     for k0 in range(0, n, chunk):
         k1 = min(k0 + chunk, n)
         states = sim.rollout_states(u[k0:k1 + 1], x)  # past the end the slice just stops at n
-        _check_time(states[:, 0], sim.sample_rate)
         if k1 < n:
             x, states = states[-1], states[:-1]
         parts.append(states)
         if progress is not None:
             progress(k1 - k0)
     return np.vstack(parts)
-
-
-def _check_time(t: np.ndarray, rate: float) -> None:
-    """MuJoCo resets an unstable simulation (time back to 0) instead of failing: catch that."""
-    back = np.flatnonzero(np.diff(t) <= 0.5 / rate)
-    if back.size:
-        raise ValueError(f"the simulation diverged after t={t[back[0]]:.4g} s and MuJoCo reset it; "
-                         "lower the excitation amplitude or the model timestep")
-
-
-@contextmanager
-def mujoco_log_silenced() -> Iterator[None]:
-    """Keep MuJoCo's own log (console and MUJOCO_LOG.TXT) quiet; restored afterwards.
-
-    Its one warning here, an unstable state, is caught by ``_check_time`` and reported as one
-    line; the C log would add a second line on stderr and a file in the working directory.
-    """
-    previous = mujoco.MjLogConfig.get()
-    quiet = mujoco.MjLogConfig.get()
-    quiet.logto_console = quiet.logto_file = False
-    quiet.set()
-    try:
-        yield
-    finally:
-        previous.set()
 
 
 def simulate_chunked(sim: Simulator, u: np.ndarray, chunk: int = CHUNK_SAMPLES,

@@ -3,8 +3,9 @@
 Each round:
 1. the current structure is fitted to the training windows (``identify.fit``);
 2. its prediction residual is located (``locate``): which signal, when, under which condition;
-3. every effect not yet in the model (whose prerequisites are) is screened by fitting only
-   its own parameters, the rest held at their fitted values, on the training windows;
+3. every effect not yet in the model (whose prerequisites are) is screened by fitting its own
+   parameters and those of the effects it refines, the rest held at their fitted values, on
+   the training windows;
 4. the candidate that lowers the HELD-OUT cost most is named if it passes both tests below;
    it is added, the whole structure refitted, and the next round starts.
 Stopping rule (documented in docs/diagnosis.md): a candidate is accepted only if it lowers the
@@ -144,18 +145,37 @@ def _evidence(effect: str, where: dict) -> list[str]:
     return out
 
 
-def _candidate_settings(effect: str, where: dict) -> tuple[dict, dict]:
-    """Initial values / discrete settings suggested by the located evidence."""
-    values, settings = {}, {}
+def _candidate_variants(effect: str, where: dict) -> list[tuple[dict, dict]]:
+    """(initial values, discrete settings) to screen an effect with, suggested by the evidence.
+
+    The ripple harmonic is not fitted but tried: each signal's residual proposes its own best
+    k (they need not agree: the q residual is dominated by other errors), so every distinct
+    proposal is screened, most-explained first, at most three.
+    """
     conds = [c for loc in where.get("signals", {}).values() for c in loc.get("conditions", [])]
     if effect == "torque_ripple":
-        ks = [c["params"].get("k") for c in conds if c["name"] == "periodic_q" and c["params"].get("k")]
-        settings["torque_ripple.harmonic"] = float(ks[0]) if ks else 1.0
+        ranked = sorted((c for c in conds if c["name"] == "periodic_q" and c["params"].get("k")),
+                        key=lambda c: -c["score"])
+        ks = list(dict.fromkeys(float(c["params"]["k"]) for c in ranked))[:3] or [1.0]
+        return [({}, {"torque_ripple.harmonic": k}) for k in ks]
     if effect == "input_delay":
         lags = [c["params"].get("lag_ms") for c in conds if c["name"] == "lag" and c["significant"]]
         if lags and lags[0] > 0:
-            values["input_delay.delay"] = min(lags[0] * 1e-3, 0.009)
-    return values, settings
+            return [({"input_delay.delay": min(lags[0] * 1e-3, 0.009)}, {})]
+    return [({}, {})]
+
+
+def screened_params(effect: str) -> list[str]:
+    """A candidate's own parameters plus those of the effects it refines.
+
+    Adding e.g. hysteresis to a gear changes what the fitted k1 should be (the base fit's k1
+    is the secant stiffness of the hysteretic truth), so the prerequisite's parameters are
+    freed with the candidate's.
+    """
+    names = [p.name for p in EFFECTS[effect].params]
+    for req in EFFECTS[effect].requires:
+        names += [p.name for p in EFFECTS[req].params]
+    return names
 
 
 def candidates_for(structure: Structure, allowed=None) -> list[str]:
@@ -178,12 +198,12 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         where = residual_location(predictor, current.structure)
         screened: dict[str, tuple[float, FitResult]] = {}
         for name in candidates_for(current.structure, options.candidates):
-            values, settings = _candidate_settings(name, where)
-            trial = current.structure.with_effect(name, values, settings)
-            own = [p.name for p in EFFECTS[name].params]
-            res = fit(predictor, trial, own, max_iter=options.screen_iter)
-            screened[name] = (res.cost_test, res)
-            say(f"  screened {name}: held-out cost {current.cost_test:.4g} -> {res.cost_test:.4g}")
+            for values, settings in _candidate_variants(name, where):
+                trial = current.structure.with_effect(name, values, settings)
+                res = fit(predictor, trial, screened_params(name), max_iter=options.screen_iter)
+                if name not in screened or res.cost_test < screened[name][0]:
+                    screened[name] = (res.cost_test, res)
+                say(f"  screened {name} {settings or ''}: held-out cost {current.cost_test:.4g} -> {res.cost_test:.4g}")
         if not screened:
             break
         best = min(screened, key=lambda k: screened[k][0])

@@ -102,8 +102,9 @@ def _intervals(residual, x, lo, hi, names, structure: Structure):
     h = jac.T @ jac
     lam, vec = np.linalg.eigh(h)
     lam_max = max(float(lam.max()), 1e-300)
-    inv_diag = np.array([np.sum(vec[j, :] ** 2 / np.maximum(lam, lam_max * 1e-14)) for j in range(len(x))])
-    half = 1.96 * np.sqrt(s2 * inv_diag)
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # unidentifiable -> inf
+        inv_diag = np.array([np.sum(vec[j, :] ** 2 / np.maximum(lam, lam_max * 1e-14)) for j in range(len(x))])
+        half = np.nan_to_num(1.96 * np.sqrt(s2 * inv_diag), nan=np.inf)
     params = {p.name: p for p in structure.params}
     out, warnings = {}, []
     for j, name in enumerate(names):

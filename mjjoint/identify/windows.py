@@ -28,6 +28,8 @@ from scipy.signal import savgol_filter
 from ..coupling.kernels import joint_traces
 from ..coupling.layout import (ASYM, B, BW_A, BW_BETA, BW_GAMMA, BW_N, FC, FKIND, FRICTION_2SEP, FS, HYST,
                                NSTATE, QR, SHAPE, SIGMA, VS, WSIGN, X, Z1, Z2)
+from ..assets.builder import check_stability
+from ..coupling.mjlog import mujoco_log_silenced
 from ..coupling.plugin import register_model
 from ..physics.stribeck import steady_state
 from ..sim import FULL, joint_indices
@@ -132,6 +134,13 @@ class Predictor:
     def predict(self, structures: list[Structure], windows: np.ndarray | None = None) -> list[dict[str, np.ndarray]]:
         """Predicted q, theta, delta, tau (windows x samples) for each structure."""
         windows = np.arange(len(self.starts)) if windows is None else np.asarray(windows)
+        stable = [_is_stable(s) for s in structures]
+        if not all(stable):
+            # Explicitly unstable parameters are not simulated: they score as NaN (worst).
+            good = [s for s, ok in zip(structures, stable) if ok]
+            done = iter(self.predict(good, windows) if good else [])
+            nan = np.full((len(windows), self.nwin_samples), np.nan)
+            return [next(done) if ok else {k: nan for k in ("q", "theta", "delta", "tau")} for ok in stable]
         models, delays = [], []
         for s in structures:
             arm, joint = s.model_params()
@@ -146,7 +155,8 @@ class Predictor:
         ctrl = np.concatenate([self._controls(mod, windows, d) for mod, d in zip(models, delays)])
         batch_models = [mod for mod in models for _ in windows]
         datas = [mujoco.MjData(models[0]) for _ in range(max(1, self.nthread))]
-        state, _ = mj_rollout.rollout(batch_models, datas, x0, ctrl, persistent_pool=True)
+        with mujoco_log_silenced():
+            state, _ = mj_rollout.rollout(batch_models, datas, x0, ctrl, persistent_pool=True)
         self.rollouts += len(structures) * len(windows) / len(self.starts)
         sub = self._substeps(models[0])
         out = []
@@ -261,6 +271,14 @@ def _steady_internal_states(blk, qd, delta):
         xu = (blk[BW_A] / max(blk[BW_BETA] + blk[BW_GAMMA], 1e-300)) ** (1.0 / blk[BW_N])
         st[:, X] = np.clip(delta, -xu, xu)
     return st
+
+
+def _is_stable(structure: Structure) -> bool:
+    try:
+        check_stability(*structure.model_params())
+    except ValueError:
+        return False
+    return True
 
 
 _MODEL_CACHE: dict = {}

@@ -4,9 +4,9 @@
     x' = A delta' - beta |delta'| |x|^{n-1} x - gamma delta' |x|^n                      (17)
 
 (17) is rate independent, dx = [A - (beta sgn(d delta) sgn(x) + gamma)|x|^n] d delta, so the
-plugin steps it with the deflection increment of the step rather than a time derivative, and
-does so linearly implicitly in x (one Newton step of backward Euler): the plastic branch
-saturates x at (A/(beta+gamma))^{1/n} without overshoot for any increment.
+plugin steps it with the deflection increment of the step rather than a time derivative,
+linearly implicitly in x (one Newton step of backward Euler), in pieces of at most x_u/10:
+the plastic branch saturates x at x_u = (A/(beta+gamma))^{1/n} without overshoot.
 """
 from __future__ import annotations
 
@@ -33,20 +33,36 @@ def restoring_torque(delta: float, x: float, mu: float, k1: float, k2: float, k3
 
 
 @njit(cache=True)
-def boucwen_step(x: float, ddelta: float, a: float, beta: float, gamma: float, n: float) -> float:
-    """Advance the Bouc-Wen state x over a deflection increment ``ddelta`` (Eq. 17)."""
-    if ddelta == 0.0:
-        return x
-    sd = 1.0 if ddelta > 0.0 else -1.0
-    sx = 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+def _boucwen_newton(x: float, dd: float, a: float, beta: float, gamma: float, n: float) -> float:
+    """One Newton step of backward Euler x' = x + dd g(x') over a small increment dd."""
+    sd = 1.0 if dd > 0.0 else -1.0
+    sx = 1.0 if x > 0.0 else (-1.0 if x < 0.0 else sd)  # at x = 0 the step enters the sd branch
     ax = abs(x)
     c = beta * sd * sx + gamma
     g = a - c * ax ** n
-    # d g / d x, used for the implicit (Newton) correction; only the loading branch (c > 0)
-    # is stiff, the unloading one is damped by construction.
-    dg = -n * c * sx * ax ** (n - 1.0) if ax > 0.0 else 0.0
-    denom = 1.0 - ddelta * dg
-    return x + ddelta * g / denom if denom > 1e-12 else x + ddelta * g
+    dg = -n * c * sx * ax ** (n - 1.0) if (ax > 0.0 or n == 1.0) else 0.0
+    return x + dd * g / (1.0 - dd * dg)
+
+
+@njit(cache=True)
+def boucwen_step(x: float, ddelta: float, a: float, beta: float, gamma: float, n: float) -> float:
+    """Advance the Bouc-Wen state x over a deflection increment ``ddelta`` (Eq. 17).
+
+    The increment is split so that each piece moves x by at most a tenth of the saturation
+    value x_u (one piece in the plugin's normal use: a step's deflection change is far below
+    that), which keeps x inside [-x_u, x_u] for any increment.
+    """
+    if ddelta == 0.0:
+        return x
+    s = beta + gamma
+    pieces = 1
+    if s > 0.0:
+        xu = (a / s) ** (1.0 / n)
+        pieces = min(int(abs(ddelta) * a / (0.1 * xu)) + 1, 10000)
+    dd = ddelta / pieces
+    for _ in range(pieces):
+        x = _boucwen_newton(x, dd, a, beta, gamma, n)
+    return x
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,8 @@ class StaticFriction:
         check("vs", self.vs, 0.0, lo_open=True)
         check("shape", self.shape, 0.1, 5.0)
         check("sigma", self.sigma, 0.0)
-        check("asym", self.asym, -self.fc, self.fc)
+        lim = min(self.fc, self.fs)  # both directions keep non-negative friction levels
+        check("asym", self.asym, -lim, lim)
         check("v_eps", self.v_eps, 0.0, lo_open=True)
 
     @classmethod

@@ -7,6 +7,7 @@ This walk over the element tags rejects such files first; it decodes no data.
 
 from __future__ import annotations
 
+import math
 import struct
 import zlib
 from collections.abc import Iterator
@@ -14,10 +15,11 @@ from collections.abc import Iterator
 _DECODABLE = frozenset({1, 2, 3, 4, 5, 6, 7, 9, 12, 13, 16, 17, 18})  # mi* codes scipy has a dtype for
 _INT32, _UINT32, _MATRIX, _COMPRESSED = 5, 6, 14, 15
 _MAX_DIMS = 32  # scipy reads the dimensions into a fixed C array of this size
-_CONTAINERS = frozenset({1, 2, 3, 16, 17, 18})  # mx* classes (cell, struct, object, ...) that nest matrices
-# Elements after the flags that scipy reads for the plain classes (dims, name, data parts),
-# plus one for an imaginary part: char 4, sparse ir/jc/pr, numeric real.
-_CHAR, _SPARSE, _NUMERIC = 4, 5, range(6, 16)
+_CHAR, _SPARSE, _OPAQUE = 4, 5, 17  # mx* classes; opaque (class objects) has no dimensions
+_CONTAINERS = frozenset({1, 2, 3, 16, 17, 18})  # cell, struct, object, ...: they nest variables
+# Elements scipy reads for a plain variable, flags included: flags, dims, name and data
+# (sparse: ir, jc, pr), plus an imaginary part when the complex flag is set.
+_PARTS = {_CHAR: 4, _SPARSE: 6, **dict.fromkeys(range(6, 16), 4)}
 _COMPLEX_FLAG = 0x0800
 _MAX_DEPTH = 64  # nesting beyond this is corruption, and would exhaust the reader's stack
 
@@ -78,14 +80,18 @@ def _check_matrix(body: memoryview, order: str, depth: int) -> None:
     code, flags = children[0]
     if code != _UINT32 or len(flags) != 8:
         raise ValueError("variable without array flags")
-    code, dims = children[1] if len(children) > 1 else (None, b"")
-    if code != _INT32 or len(dims) % 4 or not 2 <= len(dims) // 4 <= _MAX_DIMS:
-        raise ValueError(f"variable without valid dimensions (2 to {_MAX_DIMS} int32 values)")
     word = struct.unpack_from(order + "I", flags)[0]
     mx_class = word & 0xFF
-    if mx_class == _CHAR or mx_class == _SPARSE or mx_class in _NUMERIC:
+    code, dims = children[1] if len(children) > 1 else (None, b"")
+    if mx_class != _OPAQUE and (code != _INT32 or len(dims) % 4 or not 2 <= len(dims) // 4 <= _MAX_DIMS):
+        raise ValueError(f"variable without valid dimensions (2 to {_MAX_DIMS} int32 values)")
+    # scipy allocates the array before reading its data, so corrupt dimensions could exhaust
+    # memory. Every element but a sparse one takes at least one byte of the variable.
+    if mx_class not in (_SPARSE, _OPAQUE) and math.prod(struct.unpack(f"{order}{len(dims) // 4}i", dims)) > len(body):
+        raise ValueError("variable dimensions larger than its data")
+    if mx_class in _PARTS:
         # scipy reads these parts blindly: a missing one is taken from the next variable's tags.
-        expected = {_CHAR: 4, _SPARSE: 6}.get(mx_class, 4) + (mx_class != _CHAR and bool(word & _COMPLEX_FLAG))
+        expected = _PARTS[mx_class] + (mx_class != _CHAR and bool(word & _COMPLEX_FLAG))
         if len(children) != expected:
             raise ValueError(f"variable of class {mx_class} has {len(children)} elements, expected {expected}")
     for code, child in children[1:]:

@@ -1,0 +1,94 @@
+"""Run one concealed case blind and score the result against the hidden truth."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..diagnosis.loop import DiagnoseOptions, diagnose
+from ..identify.structure import Structure
+from ..identify.windows import Measured, Predictor, WindowDesign
+from ..recordings import Recording, read_recording, write_recording
+from .cases import CONCEALED, GEAR_RATIO, NOMINAL, Case, make_case
+from .recorder import LabProgram, record
+
+
+@dataclass
+class Score:
+    case: str
+    seed: int
+    named: bool
+    false_additions: list[str]
+    signal: str
+    nrmse_before: float
+    nrmse_after: float
+    parameter: str | None
+    truth: float | None
+    fitted: float | None
+    rollouts: float
+    seconds: float
+
+    @property
+    def reduction(self) -> float:
+        return 1.0 - self.nrmse_after / self.nrmse_before if self.nrmse_before > 0 else 0.0
+
+    @property
+    def parameter_error(self) -> float | None:
+        if self.truth is None or self.fitted is None:
+            return None
+        return abs(self.fitted - self.truth) / abs(self.truth)
+
+    @property
+    def passed(self) -> bool:
+        if self.case == "none":
+            return not self.false_additions
+        err = self.parameter_error
+        return (self.named and not self.false_additions and self.reduction >= 0.5
+                and err is not None and err <= 0.2)
+
+
+def write_case_recording(case: Case, folder: Path, duration: float) -> Path:
+    """Simulate the truth in closed loop and write ONLY the recording CSV the tool will see."""
+    arm, joint = case.truth.model_params()
+    cols = record(arm, joint, LabProgram(duration=duration, seed=case.seed))
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "recording.csv"
+    write_recording(path, Recording(t=cols["t"], u=cols["u"], q=cols["q"], theta=cols["theta"],
+                                    tau=cols["tau"], gear_ratio=GEAR_RATIO, meta={}))
+    return path
+
+
+def _fitted_value(case: Case, structure: Structure) -> float | None:
+    name = CONCEALED[case.effect][0]
+    if name is None or not all(k in structure.values for k in _needed(name)):
+        return None
+    if name == "torque_ripple.amplitude":
+        return float(np.hypot(structure.values["torque_ripple.a"], structure.values["torque_ripple.b"]))
+    if name == "gravity.g":  # compare gravity torques: the truth's link mass differs from nominal
+        return float(structure.values["gravity.g"]) * NOMINAL.tip_mass / case.truth.nominal.tip_mass
+    return float(structure.values[name])
+
+
+def _needed(name: str) -> tuple[str, ...]:
+    return ("torque_ripple.a", "torque_ripple.b") if name == "torque_ripple.amplitude" else (name,)
+
+
+def run_case(effect: str, seed: int, folder: Path, duration: float = 20.0,
+             options: DiagnoseOptions = DiagnoseOptions(), progress=None) -> Score:
+    case = make_case(effect, seed)
+    path = write_case_recording(case, folder, duration)
+    start = time.perf_counter()
+    rec = read_recording(path, gear_ratio=GEAR_RATIO)  # the tool's only input, with the base list
+    predictor = Predictor(Measured.from_recording(rec, GEAR_RATIO), WindowDesign(seed=seed))
+    base = Structure.create(case.base_effects, NOMINAL, GEAR_RATIO)
+    diag = diagnose(predictor, base, options, progress)
+    seconds = time.perf_counter() - start
+    signal = max(diag.initial.nrmse_test, key=diag.initial.nrmse_test.get)
+    missing = diag.missing
+    return Score(case=effect, seed=seed, named=effect in missing,
+                 false_additions=[m for m in missing if m != effect], signal=signal,
+                 nrmse_before=diag.initial.nrmse_test[signal], nrmse_after=diag.final.nrmse_test[signal],
+                 parameter=CONCEALED[effect][0], truth=case.truth_value(),
+                 fitted=_fitted_value(case, diag.final.structure), rollouts=diag.rollouts, seconds=seconds)

@@ -1,0 +1,92 @@
+"""``mjjoint diagnose``: which physical effect does the model leave out of this recording?
+
+Runs the fit -> locate -> name -> refit loop (``diagnosis.loop``) from a starting model and
+reports where simulation and recording differ, the effects found missing in order, the
+fitted model with them, and the held-out NRMSE before and after; or that nothing is missing.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from ..diagnosis.loop import DiagnoseOptions
+from ..identify.effects import EFFECTS
+from .errors import CliError
+from .fit import add_problem_options, effect_names, load_problem, run_info
+
+DEFAULT_OUT = Path("out/diagnose")
+OPTIONS = DiagnoseOptions()
+
+EPILOG = f"""\
+examples:
+  mjjoint diagnose rec.csv --gear-ratio 160 --base coulomb_friction,viscous_friction,linear_stiffness
+  mjjoint diagnose rec.csv --model my_joint.toml --max-rounds 2 --out out/run1
+  mjjoint diagnose rec.csv --gear-ratio 160 --candidates backlash,input_delay,torque_ripple
+
+writes DIR/index.html (verdict, per-step evidence, figures), diagnosis.json (same inputs and
+seed give the same bytes), traces.rrd (measured, before and after; 'rerun traces.rrd'),
+PNGs and run.json (wall time); DIR appears only when complete.
+
+candidate effects: {", ".join(EFFECTS)}
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "diagnose", help="name the physics a model lacks for a recording, with evidence",
+        description="Fit the starting model to the recording, locate where its predictions miss, name the\n"
+                    "missing effect that best explains held-out data, add it, refit; repeat until nothing\n"
+                    "significant is missing.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_problem_options(p, DEFAULT_OUT)
+    d = p.add_argument_group("diagnosis")
+    d.add_argument("--max-rounds", type=int, default=OPTIONS.max_rounds, metavar="K",
+                   help=f"most effects to add (default {OPTIONS.max_rounds})")
+    d.add_argument("--min-gain", type=float, default=OPTIONS.min_gain, metavar="G",
+                   help=f"relative held-out cost reduction needed to name an effect (default {OPTIONS.min_gain:g})")
+    d.add_argument("--candidates", metavar="LIST", help="comma list of effects to consider (default: all)")
+    d.add_argument("--fit-iter", type=int, default=OPTIONS.fit_iter, metavar="K",
+                   help=f"LM iterations of each full fit (default {OPTIONS.fit_iter})")
+    d.add_argument("--screen-iter", type=int, default=OPTIONS.screen_iter, metavar="K",
+                   help=f"LM iterations when screening a candidate (default {OPTIONS.screen_iter})")
+    p.set_defaults(handler=run)
+
+
+def options_from_args(args: argparse.Namespace) -> DiagnoseOptions:
+    for flag, value in (("--max-rounds", args.max_rounds), ("--fit-iter", args.fit_iter),
+                        ("--screen-iter", args.screen_iter)):
+        if value < 1:
+            raise CliError(f"{flag} {value} must be at least 1")
+    if not 0 < args.min_gain < 1:
+        raise CliError(f"--min-gain {args.min_gain:g} must lie in (0, 1)")
+    candidates = None if args.candidates is None else tuple(effect_names(args.candidates, "--candidates"))
+    return DiagnoseOptions(min_gain=args.min_gain, max_rounds=args.max_rounds, screen_iter=args.screen_iter,
+                           fit_iter=args.fit_iter, candidates=candidates)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..diagnosis.loop import diagnose
+    from ..report.output import OutputDir
+    from ..report.progress import StepLog
+
+    options = options_from_args(args)
+    out = OutputDir(args.out)
+    out.check()
+    problem = load_problem(args)
+    for note in problem.notes:
+        print(f"note: {note}", file=sys.stderr)
+    start = time.perf_counter()
+    diag = diagnose(problem.predictor, problem.base, options, progress=StepLog())
+    seconds = time.perf_counter() - start
+
+    from ..report.build import write_diagnosis
+    from ..report.summary import diagnosis_summary
+    run = {**run_info("diagnose", args, problem), "seconds": round(seconds, 3),
+           "rollouts_full_length": round(diag.rollouts, 1)}
+    with out.staged() as folder:
+        data = write_diagnosis(folder, problem.predictor, diag, problem.source, run)
+    print(diagnosis_summary(data, seconds))
+    print(f"report: {out.path / 'index.html'}  (data: diagnosis.json, traces.rrd)")
+    return 0

@@ -1,0 +1,61 @@
+"""Measured windows next to the windowed predictions of one or more fitted models.
+
+The windows tile the recording (each starts where the last ended, from the measured state),
+so their samples in order form one time line; predictions restart at every window start.
+Everything the plots, the HTML page and the .rrd show comes from one ``Comparison``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..identify.structure import Structure
+from ..identify.windows import Predictor
+
+# Display unit and factor from SI per signal.
+UNITS = {"q": ("rad", 1.0), "theta": ("deg", 180.0 / np.pi), "delta": ("mrad", 1e3), "tau": ("N m", 1.0)}
+LABELS = {"q": "motor angle q", "theta": "link angle theta", "delta": "deflection delta",
+          "tau": "transmission torque tau"}
+
+
+@dataclass
+class Comparison:
+    """windows x samples arrays: measured, each model's prediction, and operating conditions."""
+
+    t: np.ndarray                               # [s]
+    measured: dict[str, np.ndarray]             # q, theta, delta and tau when recorded
+    predicted: dict[str, dict[str, np.ndarray]]  # model label -> signal -> array
+    conditions: dict[str, np.ndarray]           # qd, thetad, theta, q of the recording
+    heldout: np.ndarray                         # bool per window
+    cost: np.ndarray                            # bool per sample: used in the fit cost (after warmup)
+
+    @property
+    def signals(self) -> tuple[str, ...]:
+        return tuple(self.measured)
+
+    def residual(self, label: str, signal: str) -> np.ndarray:
+        """measured - predicted (windows x samples)."""
+        return self.measured[signal] - self.predicted[label][signal]
+
+
+def compare(predictor: Predictor, models: dict[str, Structure]) -> Comparison:
+    """Predict every window with each model (one batched rollout per model signature)."""
+    preds = predictor.predict(list(models.values()))
+    m = predictor.m
+    idx = predictor.starts[:, None] + np.arange(predictor.nwin_samples)[None, :]
+    measured = {s: np.asarray(v) for s, v in predictor.meas.items() if v is not None}
+    measured = {s: measured[s] for s in ("q", "theta", "delta", "tau") if s in measured}
+    cost = np.zeros(predictor.nwin_samples, bool)
+    cost[predictor.cols[0]:] = True
+    return Comparison(
+        t=m.t[idx], measured=measured,
+        predicted={label: {s: p[s] for s in measured} for label, p in zip(models, preds)},
+        conditions={"q": m.q[idx], "theta": m.theta[idx], "qd": m.qd[idx], "thetad": m.thetad[idx]},
+        heldout=np.asarray(predictor.holdout, bool).copy(), cost=cost)
+
+
+def worst_signal(nrmse: dict[str, float], available) -> str:
+    """The signal with the largest held-out NRMSE among those available (NaN counts as worst)."""
+    options = [s for s in nrmse if s in available]
+    return max(options, key=lambda s: np.inf if not np.isfinite(nrmse[s]) else nrmse[s])

@@ -1,0 +1,100 @@
+"""Output folders that appear complete or not at all, and JSON that is byte-reproducible.
+
+Everything is written into ``DIR.partial-<pid>`` beside ``DIR`` (same filesystem, so the final
+rename is atomic) and renamed to ``DIR`` only when every file is there. An interrupt or error
+removes the partial folder; a hard kill leaves one whose name says it is partial. A complete
+folder always holds ``run.json``, written last: that marks it as ours, so a later run may
+replace it, while a folder of someone else's files is never deleted.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+MARKER = "run.json"
+
+
+def jsonable(obj: Any) -> Any:
+    """Plain JSON types: numpy scalars and arrays converted, tuples as lists, non-finite as null."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        return jsonable(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None  # strict JSON has no NaN/inf; null reads as "undefined" everywhere
+    return obj
+
+
+def write_json(path: Path, data: Any) -> Path:
+    """``data`` as indented strict JSON with a final newline (same data -> same bytes)."""
+    text = json.dumps(jsonable(data), indent=2, allow_nan=False)
+    path.write_text(text + "\n", encoding="utf-8")
+    return path
+
+
+class OutputDir:
+    """The ``--out`` folder of a command: checked up front, written all at once at the end."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.partial = self.path.with_name(f"{self.path.name}.partial-{os.getpid()}")
+
+    def check(self) -> None:
+        """Fail now, before any compute is spent, if the result could not be put in place."""
+        p = self.path
+        if p.exists() and not p.is_dir():
+            raise ValueError(f"{p}: exists and is not a folder; choose another --out")
+        if p.is_dir() and any(p.iterdir()) and not (p / MARKER).is_file():
+            raise ValueError(f"{p}: folder exists and is not an mjjoint output (no {MARKER}); "
+                             "choose another --out or empty it")
+        # Nothing is created yet (a bad input found later must leave no trace): check the
+        # nearest existing ancestor, where the missing folders will be made.
+        base = p.parent.absolute()
+        while not base.exists():
+            base = base.parent
+        if not base.is_dir():
+            raise ValueError(f"{base}: is a file, so {p} cannot be created; choose another --out")
+        if not os.access(base, os.W_OK | os.X_OK):
+            raise PermissionError(13, "Permission denied", str(base))
+
+    @contextmanager
+    def staged(self) -> Iterator[Path]:
+        """Yield the partial folder to write into; on success it becomes ``self.path``."""
+        self.check()
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        shutil.rmtree(self.partial, ignore_errors=True)  # leftover of an earlier run with our pid
+        self.partial.mkdir()
+        try:
+            yield self.partial
+            if not (self.partial / MARKER).is_file():
+                raise RuntimeError(f"output written without {MARKER}")  # a bug in the command
+            self._replace()
+        except BaseException:  # KeyboardInterrupt included: nothing half-written may stay
+            shutil.rmtree(self.partial, ignore_errors=True)
+            raise
+
+    def _replace(self) -> None:
+        old = None
+        if self.path.exists():
+            old = self.path.with_name(f"{self.path.name}.old-{os.getpid()}")
+            os.replace(self.path, old)
+        try:
+            os.replace(self.partial, self.path)
+        except BaseException:
+            if old is not None:
+                os.replace(old, self.path)  # put the previous complete result back
+            raise
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)

@@ -1,0 +1,84 @@
+"""Plain-text summaries for the terminal: parameter tables, NRMSE before -> after, the verdict."""
+from __future__ import annotations
+
+from ..identify.effects import BASE_PARAMS, EFFECTS, Param
+
+SIGNAL_ORDER = ("q", "theta", "delta", "tau")
+
+
+def params_by_name() -> dict[str, Param]:
+    return {p.name: p for p in BASE_PARAMS + tuple(p for e in EFFECTS.values() for p in e.params)}
+
+
+def flagged(name: str, warnings) -> bool:
+    """Whether a fit warning names parameter ``name`` (e.g. unidentifiable, on a bound)."""
+    return any(w.startswith(f"{name} ") for w in warnings)
+
+
+def parameter_rows(parameters: dict[str, float], intervals: dict, warnings) -> list[tuple[str, str, str, str, bool]]:
+    """(name, value, 95 % interval, unit, flagged) per parameter, formatted for people."""
+    meta = params_by_name()
+    rows = []
+    for name, value in parameters.items():
+        iv = intervals.get(name)
+        interval = "-" if iv is None else f"[{iv[0]:.3g}, {iv[1]:.3g}]"
+        unit = meta[name].unit if name in meta else ""
+        rows.append((name, f"{value:.4g}", interval, unit, flagged(name, warnings)))
+    return rows
+
+
+def parameter_table(parameters: dict[str, float], intervals: dict, warnings) -> str:
+    rows = parameter_rows(parameters, intervals, warnings)
+    width = max([len("parameter")] + [len(r[0]) for r in rows])
+    lines = [f"  {'parameter':{width}s}  {'value':>11s}  {'95 % interval':26s}  unit"]
+    for name, value, interval, unit, flag in rows:
+        lines.append(f"{'!' if flag else ' '} {name:{width}s}  {value:>11s}  {interval:26s}  {unit}".rstrip())
+    if warnings:
+        lines.append("warnings (! above):")
+        lines += [f"  - {w}" for w in warnings]
+    return "\n".join(lines)
+
+
+def nrmse_lines(before: dict[str, float], after: dict[str, float] | None = None) -> list[str]:
+    """One line per signal: held-out NRMSE, and its change when ``after`` is given."""
+    out = []
+    for s in SIGNAL_ORDER:
+        if s not in before:
+            continue
+        b = before[s]
+        if after is None:
+            out.append(f"  {s:6s} {_num(b)}")
+        else:
+            a = after[s]
+            change = "" if not (b and b == b and a == a) else f"  ({100 * (a / b - 1):+.0f} %)"
+            out.append(f"  {s:6s} {_num(b)} -> {_num(a)}{change}")
+    return out
+
+
+def _num(x) -> str:
+    return "   n/a" if x is None or x != x else f"{x:.4f}"
+
+
+def diagnosis_summary(diag: dict, seconds: float) -> str:
+    """What the user reads at the end of ``mjjoint diagnose`` (``diag``: diagnosis.json data)."""
+    lines = [f"verdict: {diag['verdict']}"]
+    steps = diag["steps"]
+    if steps:
+        lines.append("missing effects, in the order found:")
+        final = diag["final_model"]
+        for k, st in enumerate(steps, 1):
+            e = st["effect"]
+            lines.append(f"  {k}. {e} - {EFFECTS[e].physics}; held-out cost "
+                         f"{-100 * st['heldout_gain']:+.1f} %")
+            for name, row in zip(st["parameters"], parameter_rows(
+                    {n: final["parameters"][n] for n in st["parameters"]},
+                    final["intervals_95"], final["warnings"])):
+                lines.append(f"       {name} = {row[1]} {row[3]}  95 % {row[2]}{'  (!)' if row[4] else ''}")
+    lines.append("held-out NRMSE per signal (base model -> final model):")
+    lines += nrmse_lines(diag["initial_fit"]["nrmse_heldout"], diag["final_fit"]["nrmse_heldout"])
+    if diag["final_model"]["warnings"]:
+        lines.append("fit warnings:")
+        lines += [f"  - {w}" for w in diag["final_model"]["warnings"]]
+    lines.append(f"budget: {diag['budget']['rollouts_full_length']:g} full-length rollouts, "
+                 f"{seconds:.1f} s wall time")
+    return "\n".join(lines)

@@ -1,0 +1,181 @@
+"""Per-step cost of the joint physics: the compiled plugin against a bare arm and the alternatives.
+
+One process, single thread. Each configuration is the shipped arm (build_arm defaults):
+  bare      the same MJCF with the mjjoint.joint plugin instance deleted (bodies, joints,
+            rod springs and actuator kept): the floor every variant is compared with;
+  plugin    the full nonlinear joint: 2SEP + Bouc-Wen transmission + load friction;
+  spring    the plugin with a linear spring only (every other term off): the cost of the
+            plugin mechanism (two numba callbacks per step) apart from the physics;
+  dcmotor   no plugin, MuJoCo's native <dcmotor> on the motor joint with LuGre friction and
+            cogging (mujoco >= 3.17), sized like the plugin's defaults;
+  callback  no plugin, the same physics from Python: mjcb_passive calls the numba kernels
+            (joint_forces) and the loop calls joint_advance after each mj_step, with the
+            internal states in a Python-held array: what the plugin replaces.
+Two timers: mujoco.rollout (single thread, outputs preallocated) and a Python loop of
+mj_step; the callback can only run in the latter. Times are this thread's CPU time, so other
+processes on a shared machine do not count; every repeat re-runs all configurations in turn
+(interleaved, so cache and frequency drifts hit all alike) and the best repeat counts.
+
+    python scripts/bench_step.py --steps 20000 --repeats 7
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from mjjoint.assets import ArmSpec, build_arm, load_model
+from mjjoint.coupling.kernels import joint_advance, joint_forces
+from mjjoint.coupling.layout import NSTATE, pack
+from mjjoint.joint import JointParams
+from mjjoint.physics.ripple import TorqueRipple
+from mjjoint.physics.transmission import Transmission
+from mjjoint.physics.twosep import TwoSEP
+
+FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+TARGET = 1.05  # plugin / bare, compiled path
+
+
+def bare_spec() -> mujoco.MjSpec:
+    spec = build_arm()
+    for plugin in list(spec.plugins):
+        spec.delete(plugin)
+    return spec
+
+
+def dcmotor_model() -> mujoco.MjModel:
+    """Bare arm whose motor actuator is a dcmotor with LuGre friction and cogging."""
+    spec = bare_spec()
+    act = spec.actuator("current")
+    f, r = TwoSEP(), TorqueRipple()
+    act.gear[0] = 1.0  # the motor constant takes the role of the torque constant
+    act.set_to_dcmotor(
+        motorconst=[0.25, 0.25], resistance=1.0,
+        cogging=[r.amplitude, r.harmonic, r.phase],
+        # LuGre: bristle stiffness K Fc (2SEP's initial pre-sliding slope), bristle damping
+        # ~critical on the rotor, Coulomb, stiction, Stribeck velocity.
+        lugre=[f.k * f.fc, 2 * np.sqrt(f.k * f.fc * 5e-5), f.fc, f.fs, f.vs])
+    act.damping[0] = f.sigma  # viscous part
+    return spec.compile()
+
+
+def controls(model: mujoco.MjModel, steps: int) -> np.ndarray:
+    """0.5 (A or V) at 1 Hz: the arm swings, the friction reverses, nothing saturates."""
+    t = np.arange(steps) * model.opt.timestep
+    return np.repeat((0.5 * np.sin(2 * np.pi * t))[:, None], model.nu, axis=1)
+
+
+class RolloutTimer:
+    def __init__(self, model: mujoco.MjModel, steps: int):
+        self.model, self.data = model, mujoco.MjData(model)
+        mujoco.mj_resetData(model, self.data)
+        self.x0 = np.empty((1, mujoco.mj_stateSize(model, FULL)))
+        mujoco.mj_getState(model, self.data, self.x0[0], FULL)
+        self.ctrl = controls(model, steps)[None]
+        self.state = np.empty((1, steps, self.x0.shape[1]))
+        self.sensor = np.empty((1, steps, model.nsensordata))
+
+    def __call__(self) -> float:
+        t = time.thread_time()
+        rollout.rollout([self.model], [self.data], self.x0, self.ctrl, skip_checks=True,
+                        nstep=self.ctrl.shape[1], state=self.state, sensordata=self.sensor)
+        return time.thread_time() - t
+
+
+class StepLoopTimer:
+    """mj_step in a Python loop; with ``callback``, the joint physics run from Python."""
+
+    def __init__(self, model: mujoco.MjModel, steps: int, callback: bool = False):
+        self.model, self.data = model, mujoco.MjData(model)
+        self.ctrl = controls(model, steps)
+        self.callback = callback
+        if callback:
+            motor, link = model.joint("motor"), model.joint("link")
+            self.mq, self.md = int(motor.qposadr[0]), int(motor.dofadr[0])
+            self.lq, self.ld = int(link.qposadr[0]), int(link.dofadr[0])
+            self.block = pack(JointParams(), self.mq, self.md, self.lq, self.ld)
+            self.st = np.zeros(NSTATE)
+
+    def passive(self, m, d) -> None:
+        fm, fl = joint_forces(self.block, self.st, d.qpos[self.mq], d.qvel[self.md], d.qpos[self.lq], d.qvel[self.ld])
+        d.qfrc_passive[self.md] += fm
+        d.qfrc_passive[self.ld] += fl
+
+    def run(self) -> np.ndarray:
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        if not self.callback:
+            for c in self.ctrl:
+                d.ctrl[:] = c
+                mujoco.mj_step(m, d)
+            return d.qpos.copy()
+        self.st[:] = 0.0
+        h = m.opt.timestep
+        mujoco.set_mjcb_passive(self.passive)
+        try:
+            for c in self.ctrl:
+                d.ctrl[:] = c
+                mujoco.mj_step(m, d)
+                joint_advance(self.block, self.st, d.qpos[self.mq], d.qvel[self.md], d.qpos[self.lq], d.qvel[self.ld], h)
+        finally:
+            mujoco.set_mjcb_passive(None)
+        return d.qpos.copy()
+
+    def __call__(self) -> float:
+        t = time.thread_time()
+        self.run()
+        return time.thread_time() - t
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--steps", type=int, default=20000, help="steps per timed run (default 20000 = 10 s)")
+    ap.add_argument("--repeats", type=int, default=7, help="timed runs per configuration; the best counts")
+    args = ap.parse_args()
+
+    plugin, bare, dc = load_model(build_arm()), bare_spec().compile(), dcmotor_model()
+    spring = load_model(build_arm(ArmSpec(), JointParams(
+        friction=None, load_friction=None, transmission=Transmission(hysteresis=None, damping=0.0))))
+    assert plugin.nplugin == 1 and bare.nplugin == 0 and dc.nplugin == 0
+    assert dc.actuator_dyntype[0] == mujoco.mjtDyn.mjDYN_DCMOTOR and dc.na == 1  # LuGre bristle state
+    timers = {
+        ("rollout", "bare"): RolloutTimer(bare, args.steps),
+        ("rollout", "plugin"): RolloutTimer(plugin, args.steps),
+        ("rollout", "spring"): RolloutTimer(spring, args.steps),
+        ("rollout", "dcmotor"): RolloutTimer(dc, args.steps),
+        ("mj_step loop", "bare"): StepLoopTimer(bare, args.steps),
+        ("mj_step loop", "plugin"): StepLoopTimer(plugin, args.steps),
+        ("mj_step loop", "callback"): StepLoopTimer(bare, args.steps, callback=True),
+    }
+    for t in timers.values():  # warm-up: numba caches, pools, page faults
+        t()
+    best = {k: float("inf") for k in timers}
+    for _ in range(args.repeats):
+        for k, t in timers.items():
+            best[k] = min(best[k], t())
+    us = {k: v / args.steps * 1e6 for k, v in best.items()}
+
+    # The Python path must be the same physics as the plugin, or the comparison means nothing.
+    same = np.max(np.abs(timers[("mj_step loop", "plugin")].run() - timers[("mj_step loop", "callback")].run()))
+
+    print(f"mujoco {mujoco.__version__}; {args.steps} steps of {plugin.opt.timestep * 1e3:g} ms, "
+          f"best of {args.repeats}, single thread")
+    print(f"{'timer':<14}{'configuration':<12}{'us/step':>10}{'/ bare':>10}")
+    for (timer, name), v in us.items():
+        print(f"{timer:<14}{name:<12}{v:>10.3f}{v / us[(timer, 'bare')]:>10.3f}")
+    print(f"callback path reproduces the plugin: max |qpos difference| after {args.steps} steps = {same:.1e}")
+    for timer in ("rollout", "mj_step loop"):
+        ratio = us[(timer, "plugin")] / us[(timer, "bare")]
+        verdict = "met" if ratio <= TARGET else "NOT met"
+        print(f"(a) plugin / bare, {timer}: {ratio:.3f}x  (target <= {TARGET}x: {verdict})")
+    print(f"(b) dcmotor+LuGre+cogging / bare, rollout: {us[('rollout', 'dcmotor')] / us[('rollout', 'bare')]:.3f}x")
+    print(f"(c) Python callback / bare, mj_step loop: "
+          f"{us[('mj_step loop', 'callback')] / us[('mj_step loop', 'bare')]:.3f}x  "
+          f"(plugin: {us[('mj_step loop', 'plugin')] / us[('mj_step loop', 'bare')]:.3f}x)")
+
+
+if __name__ == "__main__":
+    main()
