@@ -13,7 +13,7 @@ import dataclasses
 import functools
 from dataclasses import dataclass
 
-from .params import check, fields_dict
+from .params import check, fields_dict, is_number
 from .physics.boucwen import BoucWen
 from .physics.load import LoadFriction
 from .physics.ripple import TorqueRipple
@@ -82,18 +82,16 @@ class JointParams:
         for section, kinds in SECTIONS.items():
             kind = cfg.get(section, "")
             values = {k.split(".", 1)[1]: v for k, v in cfg.items() if k.startswith(section + ".") and v != ""}
-            if kind in ("", "none") and section not in REQUIRED:
-                if kind == "" and not values:
-                    terms[section] = _DEFAULT_OFF.get(section, _default_term(section))
-                    continue
-                if kind == "none":
-                    terms[section] = None
-                    continue
-                kind = next(iter(kinds))
-            elif kind == "":
-                kind = next(iter(kinds))
+            if kind == "none" and section not in REQUIRED:
+                terms[section] = None
+                continue
+            if not kind and not values:  # not mentioned at all: the term's default
+                terms[section] = _DEFAULT_OFF.get(section, _default_term(section))
+                continue
+            kind = kind or next(iter(kinds))  # fields given without a kind: the first kind
             if kind not in kinds:
-                raise ValueError(f"{section}={kind!r} is not a known kind (allowed: none, {', '.join(kinds)})")
+                allowed = ([] if section in REQUIRED else ["none"]) + list(kinds)
+                raise ValueError(f"{section}={kind!r} is not a known kind (allowed: {', '.join(allowed)})")
             klass = kinds[kind]
             names = {f.name for f in dataclasses.fields(klass)}
             bad = sorted(set(values) - names)
@@ -103,7 +101,7 @@ class JointParams:
             try:
                 parsed = {k: float(v) for k, v in values.items()}
             except ValueError:
-                k = next(k for k, v in values.items() if not _is_float(v))
+                k = next(k for k, v in values.items() if not is_number(v))
                 raise ValueError(f"{section}.{k}={values[k]!r} is not a number") from None
             try:
                 terms[section] = klass(**parsed)
@@ -119,13 +117,6 @@ class JointParams:
                 "hysteresis": self.transmission.hysteresis, "load_friction": self.load_friction,
                 "ripple": self.ripple}
 
-
-def _is_float(v: str) -> bool:
-    try:
-        float(v)
-        return True
-    except ValueError:
-        return False
 
 
 def _kind_of(section: str, term: object) -> str:

@@ -29,7 +29,7 @@ import yaml
 
 from .assets import ArmSpec, load_model
 from .joint import REQUIRED, SECTIONS, JointParams
-from .params import check, from_mapping
+from .params import check, from_mapping, is_number
 
 SUFFIXES = (".toml", ".yaml", ".yml", ".xml")
 SECTION_NAMES = ("simulation", "arm", "joint", *SECTIONS)
@@ -97,18 +97,11 @@ def _typed(name: str, value: Any, default: Any) -> Any:
     else:  # a term (dataclass or None): set by its own section, never as a value
         raise ValueError(f"{name} is not a value; use the section [{name.rsplit('.', 1)[1]}]")
     if not ok:
-        if want == "a number" and isinstance(value, str) and _is_number(value):
+        if want == "a number" and isinstance(value, str) and is_number(value):
             want += " (it is quoted text; YAML also reads 1e-3 as text, write 1.0e-3)"
         raise ValueError(f"{name}={value!r} must be {want}")
     return value
 
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 def _term(section: str, values: dict[str, Any] | None, default: Any, **objects: Any):

@@ -30,6 +30,15 @@ def check(name: str, value: Any, lo: float | None = None, hi: float | None = Non
     return v
 
 
+def is_number(text: str) -> bool:
+    """Whether ``float(text)`` succeeds."""
+    try:
+        float(text)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
 def fields_dict(obj: Any) -> dict[str, Any]:
     """Shallow field dict of a dataclass instance (tuples kept as tuples)."""
     return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}

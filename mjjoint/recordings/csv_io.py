@@ -10,16 +10,10 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..params import is_number
 from .errors import RecordingError, listing, quote
 from .model import MultiRecording, Recording
 
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 @dataclass(frozen=True)
@@ -86,7 +80,7 @@ def read_csv_table(path: Path) -> CsvTable:
 
 
 def _check_header(where: str, header: list[str], line: int) -> None:
-    if all(_is_number(name) for name in header):
+    if all(is_number(name) for name in header):
         raise RecordingError(f"{where}: no header: line {line} is numeric; the first line must name the columns, e.g. t,u,q,theta")
     if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
         raise RecordingError(f"{where}: header {quote(header[0])} is a single column; the file must be comma-separated")

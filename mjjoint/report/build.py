@@ -18,6 +18,7 @@ from .html import diagnosis_page, fit_page
 from .output import MARKER, write_json
 from .plots import plot_residual_time, plot_windows
 from .rrd import write_rrd
+from .summary import step_values
 
 
 def diagnosis_data(diag: Diagnosis) -> dict:
@@ -31,7 +32,7 @@ def model_labels(n_steps: int) -> list[str]:
     """Labels of the fitted models in order: base ("before"), after each step, final ("after")."""
     if n_steps == 0:
         return ["fitted"]
-    return ["before", *(f"step{k}" for k in range(1, n_steps)), "after"]
+    return ["before", *(f"after_step{k}" for k in range(1, n_steps)), "after"]
 
 
 def write_diagnosis(folder: Path, predictor: Predictor, diag: Diagnosis, source: str, run: dict) -> dict:
@@ -48,11 +49,11 @@ def write_diagnosis(folder: Path, predictor: Predictor, diag: Diagnosis, source:
     files.append(plot_windows(cmp, signal, overview, folder / "heldout_windows.png"))
     files.append(plot_residual_time(cmp, signal, overview, folder / "residual.png", located))
     step_images = []
+    final = data["final_model"]
     for k, step in enumerate(diag.steps, 1):
         path = folder / f"step{k}_{step.effect}.png"
-        params = diag.final.structure.values
         files.append(plot_evidence(step.effect, cmp, labels[k - 1], labels[k], step.where,
-                                   {n: params[n] for n in step.parameters}, path, signal))
+                                   step_values(data["steps"][k - 1], final), path, signal))
         step_images.append(path.name)
     files.append(write_rrd(folder / "traces.rrd", cmp, labels, f"diagnose {source}"))
     index = folder / "index.html"

@@ -27,6 +27,7 @@ MOTOR_FRICTION = ("coulomb_friction", "viscous_friction", "stribeck_friction", "
                   "friction_asymmetry")
 MAX_POINTS = 20_000   # scatter points per model: enough to see a shape, few enough for a small PNG
 BINS = 30
+RIPPLE_BINS_PER_CYCLE = 8
 MAX_SHIFT_S = 0.05    # [s] cross-correlation range, as locate's lag search
 ZOOM_WIDTHS = 5.0     # backlash loops are also drawn within +- this many play widths of delta = 0
 
@@ -58,7 +59,9 @@ def plot_evidence(effect: str, cmp: Comparison, before: str, after: str, where: 
     else:
         x, xlabel = _condition(effect, cmp)
         signal = evidence_signal(effect, where, cmp.signals, default_signal)
-        fig = _versus(cmp, (before, after), signal, x, xlabel)
+        # Bins fine enough to resolve k ripple cycles per revolution.
+        bins = max(BINS, RIPPLE_BINS_PER_CYCLE * int(parameters.get("torque_ripple.harmonic", 0)))
+        fig = _versus(cmp, (before, after), signal, x, xlabel, bins)
     fig.suptitle(f"{effect}: {EFFECTS[effect].physics}", fontsize=11)
     return save(fig, path)
 
@@ -80,12 +83,12 @@ def _subsample(n: int) -> slice:
     return slice(None, None, max(1, -(-n // MAX_POINTS)))
 
 
-def _versus(cmp: Comparison, labels, signal: str, x: np.ndarray, xlabel: str) -> Figure:
+def _versus(cmp: Comparison, labels, signal: str, x: np.ndarray, xlabel: str, bins: int = BINS) -> Figure:
     """Residual against one condition: a scatter per model and its binned median."""
     fig = Figure(figsize=(8, 4.5), layout="constrained")
     ax = fig.subplots()
     xs = x[:, cmp.cost].ravel()
-    edges = np.unique(np.quantile(xs, np.linspace(0, 1, BINS + 1)))
+    edges = np.unique(np.quantile(xs, np.linspace(0, 1, bins + 1)))
     centers = 0.5 * (edges[1:] + edges[:-1])
     pick = _subsample(xs.size)
     factor = UNITS[signal][1]

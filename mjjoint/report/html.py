@@ -7,7 +7,7 @@ from __future__ import annotations
 from html import escape
 
 from ..identify.effects import EFFECTS
-from .summary import SIGNAL_ORDER, parameter_rows
+from .summary import SIGNAL_ORDER, parameter_rows, step_values
 
 STYLE = """
 body { font-family: sans-serif; max-width: 1060px; margin: 2em auto; color: #222; }
@@ -73,7 +73,7 @@ def _step(k: int, step: dict, final: dict, image: str | None) -> list[str]:
     evidence = step["evidence"] or ["no located condition names this effect; the held-out gain decided"]
     before, after = step["fit_before"], step["fit_after"]
     screened = ", ".join(f"{escape(n)} {c:.4g}" for n, c in sorted(step["screened"].items(), key=lambda kv: kv[1]))
-    params = {n: final["parameters"].get(n, v) for n, v in step["parameters"].items()}
+    params = step_values(step, final)
     ptable = parameter_table(params, final["intervals_95"], final["warnings"])
     out = [f"<h2>Step {k}: <code>{escape(e)}</code></h2>",
            f"<p>{escape(EFFECTS[e].physics)}. Held-out cost {-100 * step['heldout_gain']:+.1f} %.</p>",
@@ -108,7 +108,8 @@ def diagnosis_page(diag: dict, images: dict, source: str, run: dict) -> str:
     final = diag["final_model"]
     body += ["<h2>Final model</h2>",
              "<p>Effects: " + (", ".join(f"<code>{escape(e)}</code>" for e in final["effects"]) or "minimal") + "</p>",
-             parameter_table(final["parameters"], final["intervals_95"], final["warnings"]),
+             parameter_table({**final["parameters"], **final.get("settings", {})}, final["intervals_95"],
+                             final["warnings"]),
              _files(run)]
     return _page(f"mjjoint diagnose: {source}", body)
 

@@ -39,6 +39,15 @@ def parameter_table(parameters: dict[str, float], intervals: dict, warnings) -> 
     return "\n".join(lines)
 
 
+def step_values(step: dict, final: dict) -> dict[str, float]:
+    """A step's parameters at their final fitted values, plus its effect's discrete settings
+    (e.g. the ripple harmonic), from diagnosis.json data."""
+    values = {n: final["parameters"].get(n, v) for n, v in step["parameters"].items()}
+    prefix = f"{step['effect']}."
+    values.update({k: v for k, v in final.get("settings", {}).items() if k.startswith(prefix)})
+    return values
+
+
 def nrmse_lines(before: dict[str, float], after: dict[str, float] | None = None) -> list[str]:
     """One line per signal: held-out NRMSE, and its change when ``after`` is given."""
     out = []
@@ -70,10 +79,10 @@ def diagnosis_summary(diag: dict, seconds: float) -> str:
             e = st["effect"]
             lines.append(f"  {k}. {e} - {EFFECTS[e].physics}; held-out cost "
                          f"{-100 * st['heldout_gain']:+.1f} %")
-            for name, row in zip(st["parameters"], parameter_rows(
-                    {n: final["parameters"][n] for n in st["parameters"]},
-                    final["intervals_95"], final["warnings"])):
-                lines.append(f"       {name} = {row[1]} {row[3]}  95 % {row[2]}{'  (!)' if row[4] else ''}")
+            for name, value, interval, unit, flag in parameter_rows(
+                    step_values(st, final), final["intervals_95"], final["warnings"]):
+                ci = "" if interval == "-" else f"  95 % {interval}"
+                lines.append(f"       {name} = {value} {unit}".rstrip() + ci + ("  (!)" if flag else ""))
     lines.append("held-out NRMSE per signal (base model -> final model):")
     lines += nrmse_lines(diag["initial_fit"]["nrmse_heldout"], diag["final_fit"]["nrmse_heldout"])
     if diag["final_model"]["warnings"]:
