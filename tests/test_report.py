@@ -148,6 +148,8 @@ def test_foreign_or_file_targets_are_refused(tmp_path):
         OutputDir(tmp_path / "file").check()
     (tmp_path / "empty").mkdir()
     OutputDir(tmp_path / "empty").check()  # an empty folder may be used
+    with pytest.raises(ValueError, match="give a folder name"):
+        OutputDir(".")  # the working directory cannot be renamed into place
 
 
 def test_json_is_strict_plain_and_reproducible(tmp_path):

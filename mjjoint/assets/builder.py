@@ -110,7 +110,9 @@ def build_arm(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), *,
     spec.option.timestep = arm.timestep
     spec.option.gravity = [0.0, 0.0, -float(arm.gravity)]
     rotor = spec.body("rotor")
-    rotor.inertia = [4e-4, arm.motor_inertia, 4e-4]
+    # Transverse entries only matter for drawing; keep them >= the axial one (triangle rule).
+    transverse = max(4e-4, arm.motor_inertia)
+    rotor.inertia = [transverse, arm.motor_inertia, transverse]
     spec.body("hub").inertia = [arm.hub_inertia] * 3
     _rebuild_rod(spec, arm)
     act = spec.actuator("current")

@@ -59,9 +59,12 @@ def plot_evidence(effect: str, cmp: Comparison, before: str, after: str, where: 
     else:
         x, xlabel = _condition(effect, cmp)
         signal = evidence_signal(effect, where, cmp.signals, default_signal)
-        # Bins fine enough to resolve k ripple cycles per revolution.
-        bins = max(BINS, RIPPLE_BINS_PER_CYCLE * int(parameters.get("torque_ripple.harmonic", 0)))
-        fig = _versus(cmp, (before, after), signal, x, xlabel, bins)
+        if effect == "torque_ripple":  # equal bins over the revolution, fine enough for k cycles
+            k = int(parameters.get("torque_ripple.harmonic", 1))
+            edges = np.linspace(0.0, 2 * np.pi, max(BINS, RIPPLE_BINS_PER_CYCLE * k) + 1)
+        else:  # equal counts: velocities crowd near zero, where friction changes fastest
+            edges = np.unique(np.quantile(x[:, cmp.cost], np.linspace(0, 1, BINS + 1)))
+        fig = _versus(cmp, (before, after), signal, x, xlabel, edges)
     fig.suptitle(f"{effect}: {EFFECTS[effect].physics}", fontsize=11)
     return save(fig, path)
 
@@ -83,12 +86,11 @@ def _subsample(n: int) -> slice:
     return slice(None, None, max(1, -(-n // MAX_POINTS)))
 
 
-def _versus(cmp: Comparison, labels, signal: str, x: np.ndarray, xlabel: str, bins: int = BINS) -> Figure:
-    """Residual against one condition: a scatter per model and its binned median."""
+def _versus(cmp: Comparison, labels, signal: str, x: np.ndarray, xlabel: str, edges: np.ndarray) -> Figure:
+    """Residual against one condition: a scatter per model and its median in the bins ``edges``."""
     fig = Figure(figsize=(8, 4.5), layout="constrained")
     ax = fig.subplots()
     xs = x[:, cmp.cost].ravel()
-    edges = np.unique(np.quantile(xs, np.linspace(0, 1, bins + 1)))
     centers = 0.5 * (edges[1:] + edges[:-1])
     pick = _subsample(xs.size)
     factor = UNITS[signal][1]

@@ -49,6 +49,8 @@ class OutputDir:
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
+        if self.path.name in ("", ".", ".."):  # it is renamed into place: it needs a name of its own
+            raise ValueError(f"--out {path}: give a folder name, e.g. {Path(path) / 'results'}")
         self.partial = self.path.with_name(f"{self.path.name}.partial-{os.getpid()}")
 
     def check(self) -> None:
