@@ -13,7 +13,7 @@ import dataclasses
 import functools
 from dataclasses import dataclass
 
-from .params import check, fields_dict, is_number
+from .params import fields_dict, is_number
 from .physics.boucwen import BoucWen
 from .physics.load import LoadFriction
 from .physics.ripple import TorqueRipple
@@ -156,11 +156,13 @@ def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: flo
     The plugin's forces are explicit in MuJoCo's integrator, so each stiffness s acting on an
     inertia J needs sqrt(s/J) h below the semi-implicit Euler limit of 2, and each velocity
     slope c needs c h / J < 2; both are held to 1.5 for margin. ``link_inertia`` must be the
-    inertia rigidly behind the gear (the hub alone when the rod has flexible segments: at
-    these frequencies they decouple). The transmission is checked at ``RATED_DEFLECTION``.
+    apparent inertia behind the gear (``assets.stability``: the hub alone when the rod has
+    flexible segments, since they decouple at these frequencies); ``inf`` for a side fixed to
+    the world. The transmission is checked at ``RATED_DEFLECTION``.
     """
-    check("motor_inertia", motor_inertia, 0.0, lo_open=True)
-    check("link_inertia", link_inertia, 0.0, lo_open=True)
+    for name, value in (("motor_inertia", motor_inertia), ("link_inertia", link_inertia)):
+        if not value > 0:  # inf is allowed: a side fixed to the world
+            raise ValueError(f"{name}={value!r} is outside the allowed range (0, inf]")
     tr = params.transmission
     n = tr.gear_ratio
     d = RATED_DEFLECTION

@@ -65,7 +65,7 @@ class Trace:
     """Sampled traces of one joint (SI units; q motor side before the gear, theta link side)."""
 
     t: np.ndarray
-    u: np.ndarray          # commanded motor torque [N m]
+    u: np.ndarray          # applied motor torque [N m] (the command clipped to the actuator range)
     q: np.ndarray
     theta: np.ndarray
     qd: np.ndarray
@@ -89,10 +89,10 @@ class Trace:
         return {"t": self.t, "u": self.u, "q": self.q, "theta": self.theta, "tau": self.tau}
 
     def to_csv(self, path: str | Path) -> Path:
+        from .recordings import Recording, write_recording
         path = Path(path)
-        cols = self.columns()
-        np.savetxt(path, np.column_stack(list(cols.values())), delimiter=",",
-                   header=",".join(cols), comments="", fmt="%.17g")
+        write_recording(path, Recording(t=self.t, u=self.u, q=self.q, theta=self.theta, tau=self.tau,
+                                        gear_ratio=self.gear_ratio, meta={}))
         return path
 
 
@@ -144,8 +144,17 @@ class Simulator:
         for j, ji in enumerate(self.joints):
             if ji.actuator < 0:
                 raise ValueError(f"joint instance {j} has no actuator on its motor joint")
-            ctrl[:, ji.actuator] = np.repeat(u2[:, j] / ji.k_m, self.substeps)
+            ctrl[:, ji.actuator] = np.repeat(self.applied(u2)[:, j] / ji.k_m, self.substeps)
         return ctrl
+
+    def applied(self, u: np.ndarray) -> np.ndarray:
+        """The motor torques MuJoCo will apply: u clipped to each actuator's control range."""
+        u2 = np.array(u, dtype=float, ndmin=2).reshape(len(u), -1)
+        for j, ji in enumerate(self.joints):
+            if ji.actuator >= 0 and self.model.actuator_ctrllimited[ji.actuator]:
+                lo, hi = self.model.actuator_ctrlrange[ji.actuator] * ji.k_m
+                u2[:, j] = np.clip(u2[:, j], lo, hi)
+        return u2
 
     def run(self, u: np.ndarray, initial_state: np.ndarray | None = None) -> list[Trace] | Trace:
         """Roll out motor torques ``u`` sampled at ``sample_rate``; one Trace per joint."""
@@ -163,8 +172,7 @@ class Simulator:
         return np.vstack([x0[None], picked])
 
     def traces(self, states: np.ndarray, u: np.ndarray) -> list[Trace]:
-        u = np.asarray(u, dtype=float)
-        u2 = u[:, None] if u.ndim == 1 else u
+        u2 = self.applied(u)
         nq = self.model.nq
         qpos = states[:, 1:1 + nq]
         qvel = states[:, 1 + nq:1 + nq + self.model.nv]

@@ -15,8 +15,9 @@ import mujoco
 import numpy as np
 
 from ..coupling.plugin import PLUGIN_NAME, register, register_model
-from ..joint import GROUND, JointParams, stable_timestep
+from ..joint import GROUND, JointParams
 from ..params import check
+from .stability import check_model_stability
 
 ASSETS_DIR = Path(os.environ.get("MJJOINT_ASSETS", Path(__file__).resolve().parents[2] / "assets" / "mjcf"))
 ARM_XML = "elastic_joint.xml"
@@ -126,24 +127,15 @@ def build_arm(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), *,
     return spec
 
 
-def check_stability(arm: ArmSpec, joint: JointParams) -> None:
-    """Reject parameters whose injected forces would be unstable at the arm's timestep."""
-    behind_gear = arm.hub_inertia if arm.segments > 0 else arm.link_inertia
-    h_max, term = stable_timestep(joint, arm.motor_inertia, behind_gear)
-    if arm.timestep > h_max:
-        raise ValueError(f"{term} makes the joint too stiff for timestep={arm.timestep:g} s: "
-                         f"it needs timestep <= {h_max:.3g} s (ArmSpec(timestep=...))")
-
-
 def load_model(source: str | Path | mujoco.MjSpec | None = None, **kwargs) -> mujoco.MjModel:
     """Compile a model from an MJCF path, an ``MjSpec``, or (``None``) the default arm.
 
     Every ``mjjoint.joint`` instance's config is validated here, so a bad value fails with
-    a one-line ``ValueError`` naming it instead of a MuJoCo plugin-init failure.
+    a one-line ``ValueError`` naming it instead of a MuJoCo plugin-init failure, and so is its
+    stability at the model's timestep (``stability.check_model_stability``).
     """
     register()
     if source is None:
-        check_stability(kwargs.get("arm", ArmSpec()), kwargs.get("joint", JointParams()))
         spec = build_arm(**kwargs)
     elif isinstance(source, mujoco.MjSpec):
         spec = source
@@ -163,4 +155,5 @@ def load_model(source: str | Path | mujoco.MjSpec | None = None, **kwargs) -> mu
                 raise ValueError(f"plugin instance {plugin.name!r}: {exc}") from None
     model = spec.compile()
     register_model(model)
+    check_model_stability(model)
     return model

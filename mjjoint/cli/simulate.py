@@ -9,8 +9,9 @@ from typing import Any
 
 import numpy as np
 
+from ..assets.multi import read_model_file, write_traces_csv
 from ..excitation import EXCITATIONS, FromFile, excitation_fields
-from ..modelfile import ModelFile, from_section, load_model_file
+from ..modelfile import ModelFile, from_section
 from ..params import check
 from ..sim import Simulator, Trace
 from .chunked import simulate_chunked
@@ -43,7 +44,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     m = p.add_argument_group("model")
     m.add_argument("--model", type=Path, metavar="PATH",
-                   help="model file (.toml, .yaml, .yml) or MJCF (.xml); default: the shipped arm")
+                   help="model file (.toml, .yaml, .yml) or MJCF (.xml); default: the shipped arm. A "
+                        "multi-joint model ([[joint]] file or MJCF) drives every motor with the excitation "
+                        "and writes CSV columns t,u1,q1,theta1,tau1,u2,... and one plot per joint")
     m.add_argument("--rate", type=float, metavar="HZ",
                    help="sample rate; default: the model file's [simulation] sample_rate, else 1000")
     e = p.add_argument_group("excitation")
@@ -124,7 +127,7 @@ def _summary(name: str, excitation, trace: Trace, rate: float) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    model = load_model_file(args.model) if args.model is not None else ModelFile()
+    model = read_model_file(args.model) if args.model is not None else ModelFile()
     name, excitation = excitation_from_args(args)
     rate = model.sample_rate if args.rate is None else check("--rate", args.rate, 0.0, lo_open=True)
     duration = args.duration
@@ -133,20 +136,26 @@ def run(args: argparse.Namespace) -> int:
     u = excitation.sample(rate, duration)
     outputs = output_paths(args)
     sim = Simulator(model.compile(), sample_rate=rate)
-    if len(sim.joints) != 1:
-        raise CliError(f"{args.model}: has {len(sim.joints)} joint instances; simulate drives single-joint models")
-    trace = simulate_chunked(sim, u)[0]
+    traces = simulate_chunked(sim, np.repeat(u[:, None], len(sim.joints), axis=1))
+    many = len(traces) > 1
 
     if "csv" in outputs:
-        trace.to_csv(outputs["csv"])
+        if many:
+            write_traces_csv(outputs["csv"], traces)
+        else:
+            traces[0].to_csv(outputs["csv"])
     if "plot" in outputs:
         from .plot import plot_trace  # matplotlib only when a plot is asked for
-        plot_trace(trace, outputs["plot"], title=f"mjjoint simulate: {excitation}")
+        path = outputs.pop("plot")
+        for j, trace in enumerate(traces, start=1):
+            outputs[f"plot{j}"] = plot_trace(trace, path.with_stem(f"{path.stem}{j}") if many else path,
+                                             title=f"mjjoint simulate: {excitation}" + (f", joint {j}" if many else ""))
     if "rrd" in outputs or args.spawn:
         from ..viz.rerun_log import log_traces  # rerun only when asked for
-        log_traces(trace, model=sim.model, recording_name=f"simulate {name}",
-                   rrd_path=outputs.get("rrd"), spawn=args.spawn)
-    print(_summary(name, excitation, trace, rate))
+        log_traces({f"joint{j}": tr for j, tr in enumerate(traces, start=1)} if many else traces[0],
+                   model=sim.model, recording_name=f"simulate {name}", rrd_path=outputs.get("rrd"), spawn=args.spawn)
+    for j, trace in enumerate(traces, start=1):
+        print((f"joint {j}: " if many else "") + _summary(name, excitation, trace, rate))
     if outputs:
         print("wrote " + ", ".join(str(p) for p in outputs.values()))
     return 0

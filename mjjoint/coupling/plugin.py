@@ -71,6 +71,11 @@ def _joint_addresses(m_addr: int, name: str) -> tuple[int, int]:
     return qpos, dof
 
 
+def instance_params(model: mujoco.MjModel) -> list[JointParams]:
+    """The JointParams of every mjjoint.joint instance of a compiled model, in instance order."""
+    return [JointParams.from_config(_read_config(model._address, i)) for i in range(model.nplugin)]
+
+
 def block_for(m_addr: int, instance: int) -> np.ndarray:
     """Parse, validate and pack one instance's config (raises ``ValueError`` on bad input)."""
     params = JointParams.from_config(_read_config(m_addr, instance))

@@ -8,11 +8,13 @@ Each round:
    the training windows;
 4. the candidate that lowers the HELD-OUT cost most is named if it passes both tests below;
    it is added, the whole structure refitted, and the next round starts.
-Stopping rule (documented in docs/diagnosis.md): a candidate is accepted only if it lowers the
-held-out cost by at least ``min_gain`` (relative) AND lowers the training BIC
-n log(RSS/n) + p log(n); the first guards against effects that only fit noise, the second
-charges every added parameter. When no candidate passes, the verdict says nothing significant
-is missing.
+Stopping rule (documented in docs/diagnosis.md): a candidate is accepted only if, on the
+held-out windows, it lowers the cost by at least ``min_gain`` (relative) and ``min_abs``
+(absolute, in squared NRMSE), the per-window reductions are consistent (one-sided Wilcoxon
+signed-rank p <= ``max_p``: a few lucky windows do not make an effect; a rank test because the
+reductions are heavy-tailed, large on transients and small elsewhere), AND it lowers the BIC
+n log(RSS/n) + p log(n), which charges every added parameter. When no candidate passes, the
+verdict says nothing significant is missing.
 
 Evidence: each effect lists the residual conditions it would explain (e.g. backlash: near
 velocity reversals, small |delta|); the located conditions that are significant and belong
@@ -26,9 +28,10 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
+from scipy.stats import wilcoxon
 
 from ..identify.effects import EFFECTS
-from ..identify.fit import FitResult, evaluate, fit
+from ..identify.fit import FitResult, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .features import operating_conditions
@@ -57,6 +60,8 @@ EVIDENCE: dict[str, tuple[str, ...]] = {
 @dataclass(frozen=True)
 class DiagnoseOptions:
     min_gain: float = 0.10       # relative held-out cost reduction needed to name an effect
+    min_abs: float = 5e-4        # absolute one (squared NRMSE): below it an effect is immaterial
+    max_p: float = 0.05          # Wilcoxon signed-rank p of the per-window held-out reductions
     max_rounds: int = 4
     screen_iter: int = 8         # LM iterations when screening a candidate
     fit_iter: int = 20           # LM iterations when refitting the whole structure
@@ -104,7 +109,7 @@ class Diagnosis:
                 "final_fit": {"nrmse_heldout": self.final.nrmse_test},
                 "final_where": self.final_where,
                 "verdict": self.verdict,
-                "budget": {"rollouts_full_length": round(self.rollouts, 1), "seconds": round(self.seconds, 1)}}
+                "budget": {"rollouts_full_length": round(self.rollouts, 1)}}
 
 
 def _bic(cost: float, n: int, p: int) -> float:
@@ -190,7 +195,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     t_start = time.perf_counter()
     roll0 = predictor.rollouts
     say(f"fitting the base model ({', '.join(base.effects) or 'minimal'})")
-    current = fit(predictor, base, max_iter=options.fit_iter)
+    iterations = lambda i, c: say(f"    iteration {i}: cost {c:.4g}")  # noqa: E731
+    current = fit(predictor, base, max_iter=options.fit_iter, progress=iterations)
     initial = current
     history = [current]
     steps: list[Step] = []
@@ -203,7 +209,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 res = fit(predictor, trial, screened_params(name), max_iter=options.screen_iter)
                 if name not in screened or res.cost_test < screened[name][0]:
                     screened[name] = (res.cost_test, res)
-                say(f"  screened {name} {settings or ''}: held-out cost {current.cost_test:.4g} -> {res.cost_test:.4g}")
+                label = f"{name} {settings}" if settings else name
+                say(f"  screened {label}: held-out cost {current.cost_test:.4g} -> {res.cost_test:.4g}")
         if not screened:
             break
         best = min(screened, key=lambda k: screened[k][0])
@@ -212,11 +219,14 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         n = _n_residuals(predictor)
         p_now = len(current.structure.params)
         bic_ok = _bic(cand.cost_train, n, p_now + len(EFFECTS[best].params)) < _bic(current.cost_train, n, p_now)
-        if gain < options.min_gain or not bic_ok:
-            say(f"best candidate {best} improves held-out cost by {100 * gain:.1f} %: not significant")
+        p_value = _paired_p(predictor, current.structure, cand.structure)
+        material = current.cost_test - cand.cost_test >= options.min_abs
+        if gain < options.min_gain or not material or p_value > options.max_p or not bic_ok:
+            say(f"best candidate {best}: held-out cost -{100 * gain:.1f} % (paired p = {p_value:.3f}, "
+                f"BIC {'lower' if bic_ok else 'higher'}): not significant")
             break
         say(f"adding {best} (held-out cost -{100 * gain:.1f} %), refitting")
-        refit = fit(predictor, cand.structure, max_iter=options.fit_iter)
+        refit = fit(predictor, cand.structure, max_iter=options.fit_iter, progress=iterations)
         if refit.cost_test > cand.cost_test:
             refit = cand  # keep the screened fit if the full refit wandered off on held-out data
         steps.append(Step(
@@ -236,6 +246,15 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                    f"prediction cost by {100 * options.min_gain:.0f} % or more")
     return Diagnosis(steps, initial, current, final_where, verdict,
                      predictor.rollouts - roll0, time.perf_counter() - t_start, history)
+
+
+def _paired_p(predictor: Predictor, before: Structure, after: Structure) -> float:
+    """One-sided Wilcoxon signed-rank p that ``after`` lowers the held-out per-window cost."""
+    w = predictor.test
+    d = window_costs(predictor, before, w) - window_costs(predictor, after, w)
+    if not np.any(d != 0):
+        return 1.0
+    return float(wilcoxon(d, alternative="greater").pvalue)
 
 
 def _n_residuals(predictor: Predictor) -> int:

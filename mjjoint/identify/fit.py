@@ -65,6 +65,14 @@ def evaluate(predictor: Predictor, structure: Structure) -> tuple[float, float, 
     return c(ptr, tr), c(pte, te), predictor.nrmse(ptr, tr), predictor.nrmse(pte, te)
 
 
+def window_costs(predictor: Predictor, structure: Structure, windows: np.ndarray) -> np.ndarray:
+    """Mean squared normalised residual of each window (for paired comparisons)."""
+    (pred,) = predictor.predict([structure], windows)
+    per = [np.mean(np.nan_to_num(predictor.residuals({k: v[i:i + 1] for k, v in pred.items()}, windows[i:i + 1]),
+                                 nan=_BAD) ** 2) for i in range(len(windows))]
+    return np.asarray(per)
+
+
 def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int = 25,
         windows: np.ndarray | None = None, progress=None) -> FitResult:
     """Least-squares fit of the parameters ``names`` (default: all) of ``structure``."""

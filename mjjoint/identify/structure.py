@@ -8,7 +8,6 @@ import mujoco
 import numpy as np
 
 from ..assets import ArmSpec, build_arm, load_model
-from ..joint import JointParams
 from .effects import BASE_PARAMS, EFFECTS, Model, Param, check_effects, minimal_model
 
 
@@ -93,6 +92,3 @@ class Structure:
 def _params(effects) -> tuple[Param, ...]:
     return BASE_PARAMS + tuple(p for e in effects for p in EFFECTS[e].params)
 
-
-def joint_params_of(structure: Structure) -> JointParams:
-    return structure.model_params()[1]

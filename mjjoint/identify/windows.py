@@ -28,7 +28,7 @@ from scipy.signal import savgol_filter
 from ..coupling.kernels import joint_traces
 from ..coupling.layout import (ASYM, B, BW_A, BW_BETA, BW_GAMMA, BW_N, FC, FKIND, FRICTION_2SEP, FS, HYST,
                                NSTATE, QR, SHAPE, SIGMA, VS, WSIGN, X, Z1, Z2)
-from ..assets.builder import check_stability
+from ..assets.stability import check_model_stability
 from ..coupling.mjlog import mujoco_log_silenced
 from ..coupling.plugin import register_model
 from ..physics.stribeck import steady_state
@@ -134,7 +134,7 @@ class Predictor:
     def predict(self, structures: list[Structure], windows: np.ndarray | None = None) -> list[dict[str, np.ndarray]]:
         """Predicted q, theta, delta, tau (windows x samples) for each structure."""
         windows = np.arange(len(self.starts)) if windows is None else np.asarray(windows)
-        stable = [_is_stable(s) for s in structures]
+        stable = [_stable(_compile(*s.model_params())) for s in structures]
         if not all(stable):
             # Explicitly unstable parameters are not simulated: they score as NaN (worst).
             good = [s for s, ok in zip(structures, stable) if ok]
@@ -273,12 +273,19 @@ def _steady_internal_states(blk, qd, delta):
     return st
 
 
-def _is_stable(structure: Structure) -> bool:
-    try:
-        check_stability(*structure.model_params())
-    except ValueError:
-        return False
-    return True
+def _stable(model) -> bool:
+    """Stability of a compiled (memoised) model, computed once per model."""
+    key = id(model)
+    if key not in _STABLE:
+        try:
+            check_model_stability(model)
+            _STABLE[key] = True
+        except ValueError:
+            _STABLE[key] = False
+    return _STABLE[key]
+
+
+_STABLE: dict[int, bool] = {}
 
 
 _MODEL_CACHE: dict = {}
@@ -288,13 +295,16 @@ def _compile(arm, joint):
     """Compile (memoised on the exact parameters: FD columns repeat across iterations)."""
     from dataclasses import replace
 
-    from ..assets import build_arm, load_model
+    from ..assets import build_arm
     key = (replace(arm, input_delay=0.0), joint)
     model = _MODEL_CACHE.get(key)
     if model is None:
         if len(_MODEL_CACHE) > 256:
             _MODEL_CACHE.clear()
-        model = load_model(build_arm(key[0], joint, scene=False))
+            _STABLE.clear()
+        spec = build_arm(key[0], joint, scene=False)
+        model = spec.compile()  # not load_model: unstable candidates are scored, not rejected
+        register_model(model)
         _MODEL_CACHE[key] = model
     return model
 

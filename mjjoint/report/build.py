@@ -21,13 +21,6 @@ from .rrd import write_rrd
 from .summary import step_values
 
 
-def diagnosis_data(diag: Diagnosis) -> dict:
-    """``Diagnosis.as_dict()`` without its wall time (which goes to run.json)."""
-    data = diag.as_dict()
-    data["budget"] = {k: v for k, v in data["budget"].items() if k != "seconds"}
-    return data
-
-
 def model_labels(n_steps: int) -> list[str]:
     """Labels of the fitted models in order: base ("before"), after each step, final ("after")."""
     if n_steps == 0:
@@ -37,7 +30,7 @@ def model_labels(n_steps: int) -> list[str]:
 
 def write_diagnosis(folder: Path, predictor: Predictor, diag: Diagnosis, source: str, run: dict) -> dict:
     """Every file of a diagnosis in ``folder``; returns the diagnosis.json data."""
-    data = diagnosis_data(diag)
+    data = diag.as_dict()  # holds no wall time: that goes to run.json
     files = [write_json(folder / "diagnosis.json", data)]
     labels = model_labels(len(diag.steps))
     structures = [r.structure for r in diag.history] if diag.steps else [diag.initial.structure]
