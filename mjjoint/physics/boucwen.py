@@ -1,6 +1,7 @@
 """Hysteretic nonlinear stiffness: Bouc-Wen state with polynomial hardening (Eqs. 16-17).
 
     Gamma(delta, x) = sum_i [ mu k_i sgn(delta)|delta|^i + (1-mu) k_i sgn(x)|x|^i ]   (16)
+(sgn(v)|v|^i is written v, v|v|, v^3 for i = 1, 2, 3.)
     x' = A delta' - beta |delta'| |x|^{n-1} x - gamma delta' |x|^n                      (17)
 
 (17) is rate independent, dx = [A - (beta sgn(d delta) sgn(x) + gamma)|x|^n] d delta, so the
@@ -10,7 +11,6 @@ the plastic branch saturates x at x_u = (A/(beta+gamma))^{1/n} without overshoot
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from numba import njit
@@ -19,16 +19,10 @@ from ..params import check
 
 
 @njit(cache=True)
-def _signed_power(v: float, i: float) -> float:
-    """sgn(v)|v|^i, the odd extension used by every term of Eq. 16."""
-    return math.copysign(abs(v) ** i, v)
-
-
-@njit(cache=True)
 def restoring_torque(delta: float, x: float, mu: float, k1: float, k2: float, k3: float) -> float:
     """Gamma(delta, x) of Eq. 16 for the cubic stiffness polynomial k1, k2, k3."""
-    elastic = k1 * delta + k2 * _signed_power(delta, 2.0) + k3 * delta ** 3
-    plastic = k1 * x + k2 * _signed_power(x, 2.0) + k3 * x ** 3
+    elastic = k1 * delta + k2 * delta * abs(delta) + k3 * delta * delta * delta
+    plastic = k1 * x + k2 * x * abs(x) + k3 * x * x * x
     return mu * elastic + (1.0 - mu) * plastic
 
 
@@ -39,8 +33,12 @@ def _boucwen_newton(x: float, dd: float, a: float, beta: float, gamma: float, n:
     sx = 1.0 if x > 0.0 else (-1.0 if x < 0.0 else sd)  # at x = 0 the step enters the sd branch
     ax = abs(x)
     c = beta * sd * sx + gamma
-    g = a - c * ax ** n
-    dg = -n * c * sx * ax ** (n - 1.0) if (ax > 0.0 or n == 1.0) else 0.0
+    if n == 1.0:  # the usual case, without pow()
+        g = a - c * ax
+        dg = -c * sx
+    else:
+        g = a - c * ax ** n
+        dg = -n * c * sx * ax ** (n - 1.0) if ax > 0.0 else 0.0
     return x + dd * g / (1.0 - dd * dg)
 
 
@@ -57,7 +55,7 @@ def boucwen_step(x: float, ddelta: float, a: float, beta: float, gamma: float, n
     s = beta + gamma
     pieces = 1
     if s > 0.0:
-        xu = (a / s) ** (1.0 / n)
+        xu = a / s if n == 1.0 else (a / s) ** (1.0 / n)
         pieces = min(int(abs(ddelta) * a / (0.1 * xu)) + 1, 10000)
     dd = ddelta / pieces
     for _ in range(pieces):

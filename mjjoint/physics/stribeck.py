@@ -17,7 +17,10 @@ from ..params import check
 @njit(cache=True)
 def stribeck_level(w: float, fc: float, fs: float, vs: float, shape: float) -> float:
     """Magnitude of the Stribeck curve: Fc + (Fs - Fc) exp(-|w/Vs|^shape) (Eq. 15 without sign)."""
-    return fc + (fs - fc) * math.exp(-abs(w / vs) ** shape)
+    r = abs(w / vs)
+    # the common shapes 1 and 2 without pow(): this runs every simulation step
+    e = r if shape == 1.0 else (r * r if shape == 2.0 else r ** shape)
+    return fc + (fs - fc) * math.exp(-e)
 
 
 @njit(cache=True)

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from numba import njit
 
 from ..params import check
-from .stribeck import steady_state, stribeck_level
+from .stribeck import steady_state, stribeck_level  # noqa: F401 (steady_state: public API)
 
 # Layout of the 2SEP state inside the plugin state vector.
 Z1, Z2, OMEGA, QR, WSIGN = range(5)
@@ -55,8 +55,9 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
         wsign = sg
     qr_new = qr + w * h
     z1 = z1 + sg * omega * (math.exp(-k * abs(qr)) - math.exp(-k * abs(qr_new)))
-    s_mag = stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * abs(w)
-    s = steady_state(w, fc, fs, vs, shape, sigma, asym)
+    level = stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape)
+    s_mag = level + sigma * abs(w)
+    s = sg * level + sigma * w  # = steady_state(w, ...), without evaluating the curve twice
     z2 = (z2 + h * (s - z1) / s_mag) / (1.0 + h * b * abs(w) / s_mag)
     return z1, z2, omega, qr_new, wsign
 
