@@ -150,15 +150,31 @@ def config_keys() -> tuple[str, ...]:
 RATED_DEFLECTION = 5e-3  # [rad]: a harmonic drive's deflection at rated torque, where stiffness is checked
 
 
+def _group_timestep(stiff: dict[str, float], slope: dict[str, float]) -> tuple[float, str]:
+    """Largest h with sum(c/J) h + sum(k/J) h^2 / 2 <= 1.5 for terms acting on one inertia.
+
+    Semi-implicit Euler with explicit spring and damper forces on one inertia is stable for
+    c h/J + (w h)^2/2 < 2 (each alone: c h/J < 2, w h < 2; together they add up); 1.5 keeps margin.
+    """
+    a = 0.5 * sum(stiff.values())
+    b = sum(slope.values())
+    if a <= 0 and b <= 0:
+        return float("inf"), ""
+    h = 1.5 / b if a <= 0 else (-b + (b * b + 6.0 * a) ** 0.5) / (2.0 * a)
+    parts = {**{k: v * h * h / 2 for k, v in stiff.items()}, **{k: v * h for k, v in slope.items()}}
+    return h, max(parts, key=parts.get)
+
+
 def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: float) -> tuple[float, str]:
     """Largest stable timestep for the explicitly injected forces, and the term that sets it.
 
-    The plugin's forces are explicit in MuJoCo's integrator, so each stiffness s acting on an
-    inertia J needs sqrt(s/J) h below the semi-implicit Euler limit of 2, and each velocity
-    slope c needs c h / J < 2; both are held to 1.5 for margin. ``link_inertia`` must be the
-    apparent inertia behind the gear (``assets.stability``: the hub alone when the rod has
-    flexible segments, since they decouple at these frequencies); ``inf`` for a side fixed to
-    the world. The transmission is checked at ``RATED_DEFLECTION``.
+    The plugin's forces are explicit in MuJoCo's integrator. Each term is a stiffness k (the
+    transmission at ``RATED_DEFLECTION``, 2SEP pre-sliding) or a velocity slope c (damping,
+    regularised Coulomb friction) on an inertia J: the motor's, the link's, or for the
+    transmission the reduced inertia of both sides; terms on the same inertia are combined
+    (``_group_timestep``). ``link_inertia`` must be the apparent inertia behind the gear
+    (``assets.stability``: the hub alone when the rod has flexible segments, since they decouple
+    at these frequencies); ``inf`` for a side fixed to the world.
     """
     for name, value in (("motor_inertia", motor_inertia), ("link_inertia", link_inertia)):
         if not value > 0:  # inf is allowed: a side fixed to the world
@@ -168,15 +184,15 @@ def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: flo
     d = RATED_DEFLECTION
     k_max = tr.k1 + 2 * tr.k2 * d + 3 * tr.k3 * d * d
     j_red = 1.0 / (1.0 / link_inertia + 1.0 / (motor_inertia * n * n))
-    rates = {"transmission.k1/k3 (stiffness)": (k_max / j_red) ** 0.5,
-             "transmission.damping": 0.75 * tr.damping / j_red}
+    groups = [({"transmission.k1/k3 (stiffness)": k_max / j_red},
+               {"transmission.damping": tr.damping / j_red})]
     f = params.friction
     if isinstance(f, TwoSEP):
-        rates["friction.k (pre-sliding stiffness)"] = (2 * (f.fs + abs(f.asym)) * f.k / motor_inertia) ** 0.5
+        groups.append(({"friction.k (pre-sliding stiffness)": 2 * (f.fs + abs(f.asym)) * f.k / motor_inertia}, {}))
     elif isinstance(f, StaticFriction):
-        rates["friction.v_eps (Coulomb slope)"] = 0.75 * (max(f.fc, f.fs) + abs(f.asym)) / (f.v_eps * motor_inertia)
+        groups.append(({}, {"friction.v_eps (Coulomb slope)":
+                            (max(f.fc, f.fs) + abs(f.asym)) / (f.v_eps * motor_inertia) + f.sigma / motor_inertia}))
     if params.load_friction is not None:
         lf = params.load_friction
-        rates["load_friction.v_eps (Coulomb slope)"] = 0.75 * lf.fc / (lf.v_eps * link_inertia)
-    term = max(rates, key=rates.get)
-    return 1.5 / rates[term], term
+        groups.append(({}, {"load_friction.v_eps (Coulomb slope)": (lf.fc / lf.v_eps + lf.viscous) / link_inertia}))
+    return min((_group_timestep(*g) for g in groups), key=lambda r: r[0])

@@ -33,7 +33,7 @@ GEAR = 160.0
 DELAY = 3e-3
 NOMINAL = ArmSpec(segments=0, gravity=0.0)
 GEAR_VALUES = {"linear_stiffness.k1": 1e4, "transmission_damping.d": 2.0}
-FAST = ["--window-length", "0.2", "--max-rounds", "1", "--candidates", "backlash,input_delay",
+FAST = ["--window-length", "0.1", "--max-rounds", "1", "--candidates", "backlash,input_delay",
         "--fit-iter", "6", "--screen-iter", "4"]
 SCHEMA = {"missing", "steps", "final_model", "initial_fit", "final_fit", "final_where", "verdict", "budget"}
 

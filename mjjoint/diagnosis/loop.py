@@ -57,6 +57,9 @@ EVIDENCE: dict[str, tuple[str, ...]] = {
 }
 
 
+MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
+
+
 @dataclass(frozen=True)
 class DiagnoseOptions:
     min_gain: float = 0.10       # relative held-out cost reduction needed to name an effect
@@ -192,6 +195,9 @@ def candidates_for(structure: Structure, allowed=None) -> list[str]:
 def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = DiagnoseOptions(),
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     say = progress or (lambda msg: None)
+    if len(predictor.test) < MIN_HELDOUT:
+        raise ValueError(f"only {len(predictor.test)} held-out windows: naming an effect needs at least {MIN_HELDOUT} "
+                         "(the rank test cannot reach p <= 0.05 with fewer); use a longer recording or shorter windows")
     t_start = time.perf_counter()
     roll0 = predictor.rollouts
     say(f"fitting the base model ({', '.join(base.effects) or 'minimal'})")

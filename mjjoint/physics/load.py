@@ -25,10 +25,10 @@ class LoadFriction:
 
     fc: float = 0.5        # [N·m]: cross-roller output bearing, catalogue order for size 20
     viscous: float = 0.05  # d_f [N·m·s/rad]
-    # Sign regularisation [rad/s]: explicit stability needs fc h/(v_eps J) < 2 on the inertia
-    # rigidly behind the gear, which for a flexible rod is the hub alone (2e-3 kg m^2) at the
-    # step rate; 0.1 rad/s gives 0.94 at fc = 0.5 N m, h = 0.5 ms.
-    v_eps: float = 0.1
+    # Sign regularisation [rad/s]: explicit stability needs fc h/(v_eps J) < 2 (1.5 with margin)
+    # on the apparent inertia behind the gear, the hub alone for a flexible rod (2e-3 kg m^2,
+    # 1.6e-3 for an elbow on a recoiling upper arm); 0.15 rad/s gives 1.04 there at fc = 0.5 N m.
+    v_eps: float = 0.15
 
     def __post_init__(self) -> None:
         check("fc", self.fc, 0.0)
