@@ -27,6 +27,7 @@ from . import plotting
 from .signals import loop_area
 
 FREQUENCIES = (0.5, 2.0, 8.0, 32.0)   # [Hz] of the cyclic velocity, Fig. 8 (b)
+FIGURE = "fig8_friction_lag.png"
 
 
 @njit(cache=True)
@@ -128,3 +129,8 @@ def draw(data: Fig8Data, path: str | Path) -> Path:
         ax_c.axhline(lvl, color="tab:red", ls=":", lw=1)
     ax_c.set(xlabel="q [mrad]", ylabel="$z_1$ [N m]", title=r"(c) pre-sliding state $z_1$ saturating at $\pm F_c$")
     return plotting.save(fig, path)
+
+
+def write(out: str | Path) -> list[Path]:
+    """Compute with the defaults and draw Fig. 8 into folder ``out``."""
+    return [draw(compute(), Path(out) / FIGURE)]

@@ -34,6 +34,7 @@ X_U = 2e-3  # [rad] elastic-plastic transition of the Bouc-Wen state
 HYSTERETIC = Transmission(gear_ratio=1.0, k1=1e4, k2=0.0, k3=1e9, damping=0.0,
                           hysteresis=BoucWen(mu=0.1, n=2.0, beta=0.5 / X_U ** 2, gamma=0.5 / X_U ** 2))
 CASES = ("linear + D", "hysteretic", "hysteretic + D")
+FIGURE = "fig4_hysteretic_spring.png"
 
 
 @dataclass(frozen=True)
@@ -95,3 +96,8 @@ def draw(data: Fig4Data, path: str | Path) -> Path:
     axes[0].set_title(f"(a) linear spring K = {data.k_linear:.3g} N m/rad (loop chord) + D")
     axes[-1].set_xlabel("t [s]")
     return plotting.save(fig, path)
+
+
+def write(out: str | Path) -> list[Path]:
+    """Compute with the defaults and draw Fig. 4 into folder ``out``."""
+    return [draw(compute(), Path(out) / FIGURE)]

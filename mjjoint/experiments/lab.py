@@ -218,7 +218,7 @@ class StepData:
 
 
 def step_run(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), step: float = 0.11,
-             t_step: float = 0.5, duration: float = 4.0) -> StepData:
+             t_step: float = 0.5, duration: float = 6.0) -> StepData:
     sim = Simulator(arm=arm, joint=joint)
     t = np.arange(int(round(duration * sim.sample_rate))) / sim.sample_rate
     return StepData(sim.run(np.where(t >= t_step, step, 0.0)), step, t_step)
@@ -236,3 +236,12 @@ def draw_step(data: StepData, path: str | Path) -> Path:
     ax_t.set(xlabel="t [s]", ylabel="torque [N m]")
     ax_t.legend(loc="lower right")
     return plotting.save(fig, path)
+
+
+def write(out: str | Path) -> list[Path]:
+    """Run the four lab experiments with the defaults and draw them into folder ``out``."""
+    out = Path(out)
+    return [draw_frfs(impulse_frfs(), out / "lab_fig11_impulse_frfs.png"),
+            draw_chirp(chirp_run(), out / "lab_fig12_13_down_chirp.png"),
+            draw_gravity(gravity_sweep(), out / "lab_fig14a_gravity.png"),
+            draw_step(step_run(), out / "lab_fig14b_step.png")]

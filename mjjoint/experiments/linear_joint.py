@@ -40,6 +40,7 @@ from .models import compile_mjcf, inertia_body, mjcf, rollout
 from .signals import impulse_frf
 
 STIFFNESSES = (1e3, 1e8)   # K of H2 and H3 [N m/rad]
+FIGURE = "fig2_rigid_vs_elastic.png"
 
 
 @dataclass(frozen=True)
@@ -169,3 +170,8 @@ def draw(data: Fig2Data, path: str | Path) -> Path:
              title="(b) amplitude response (FFT of the simulated impulse response)")
     ax_f.legend(loc="lower left")
     return plotting.save(fig, path)
+
+
+def write(out: str | Path) -> list[Path]:
+    """Compute with the defaults and draw Fig. 2 into folder ``out``."""
+    return [draw(compute(), Path(out) / FIGURE)]

@@ -35,6 +35,7 @@ from .signals import first_order_lag
 
 STIFFNESSES = (1e3, 1e4)
 LAG_CUTOFF = 1000.0  # [rad/s]
+FIGURE = "fig6_link_vibration.png"
 
 
 @dataclass(frozen=True)
@@ -102,3 +103,8 @@ def draw(data: Fig6Data, path: str | Path) -> Path:
         ax.set(ylabel=r"$\alpha$ [mrad]", title=f"({'bcdef'[i]}) link deflection, k = {k:g} N m/rad")
     axes[-1].set_xlabel("t [s]")
     return plotting.save(fig, path)
+
+
+def write(out: str | Path) -> list[Path]:
+    """Compute with the defaults and draw Fig. 6 into folder ``out``."""
+    return [draw(compute(), Path(out) / FIGURE)]

@@ -24,6 +24,7 @@ from . import plotting
 from .signals import loop_area
 
 MUS = (1.0, 0.5, 0.1)
+FIGURE = "fig9_restoring_loops.png"
 
 
 @njit(cache=True)
@@ -94,3 +95,8 @@ def draw(data: Fig9Data, path: str | Path) -> Path:
         ax.set(xlabel=r"$\delta$ [mrad]", title=f"({labels[i]}) $\\mu$ = {mu:g}, loop area {area:.3g} J")
     np.atleast_1d(axes)[0].set_ylabel(r"$\Gamma$ [N m]")
     return plotting.save(fig, path)
+
+
+def write(out: str | Path) -> list[Path]:
+    """Compute with the defaults and draw Fig. 9 into folder ``out``."""
+    return [draw(compute(), Path(out) / FIGURE)]

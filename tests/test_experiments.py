@@ -1,0 +1,156 @@
+"""Physical properties of the seed paper's numerical examples and lab experiments.
+
+Durations are shortened with the experiments' own parameters; every threshold is the
+physical claim of the chapter's text (or the brief), not a snapshot of our output.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mjjoint.experiments import friction_lag, hysteretic_spring, lab, linear_joint, link_vibration, restoring_loops
+from mjjoint.physics.twosep import TwoSEP
+from mjjoint.sim import Simulator
+
+
+# ---- Fig. 2 -------------------------------------------------------------------------------
+
+def test_fig2_stiff_joint_steps_like_rigid_soft_one_oscillates():
+    joint, rate = linear_joint.LinearJoint(), 1000.0
+    u = np.ones(300)
+    rigid, _ = linear_joint.link_response(joint, None, u, rate, timestep=1e-5)
+    stiff, _ = linear_joint.link_response(joint, 1e8, u, rate, timestep=1e-5)
+    soft, _ = linear_joint.link_response(joint, 1e3, u, rate, timestep=1e-5)
+    scale = abs(rigid[-1])
+    assert np.abs(stiff - rigid).max() / scale < 1e-3
+    dev = soft - rigid
+    assert np.abs(dev).max() / scale > 1e-2          # visibly different ...
+    turns = np.sum(np.diff(np.sign(np.diff(dev))) != 0)
+    assert turns >= 3                                 # ... and oscillating about the rigid ramp
+
+
+def test_fig2_impulse_fft_matches_analytic_amplitude_near_resonance():
+    joint, K = linear_joint.LinearJoint(), 1e3
+    f, h = linear_joint.simulate_frf(joint, K, duration=4.0, sample_rate=1000.0, timestep=1e-4)
+    f_res = np.sqrt(K * (1 / joint.m + 1 / joint.M)) / (2 * np.pi)
+    band = np.abs(f - f_res) <= 1.0
+    ref = np.abs(linear_joint.signal.freqresp(joint.transfer(K), 2 * np.pi * f[band])[1])
+    assert np.abs(np.abs(h[band]) / ref - 1).max() < 0.03
+
+
+# ---- Fig. 4 -------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def fig4():
+    return hysteretic_spring.compute(duration=6.0)
+
+
+def test_fig4_linear_spring_decays_to_zero(fig4):
+    d = fig4.delta[0]
+    assert abs(d[-1]) < 1e-3 * np.abs(d).max()
+
+
+def test_fig4_hysteresis_alone_does_not_bring_the_mass_to_rest(fig4):
+    d = fig4.delta[1]
+    last = fig4.t > fig4.t[-1] - 1.0
+    assert np.ptp(d[last]) > 0.05 * np.abs(d).max()
+
+
+def test_fig4_hysteresis_with_damping_rests_at_nonzero_deflection(fig4):
+    d, v = fig4.delta[2], fig4.velocity[2]
+    assert abs(d[-1]) > 0.05 * np.abs(d).max()
+    assert abs(v[-1]) < 1e-4 * np.abs(v).max()
+
+
+# ---- Fig. 6 -------------------------------------------------------------------------------
+
+def test_fig6_link_vibration_amplitude_scales_with_inverse_stiffness():
+    data = link_vibration.compute(duration=0.2)
+    k_soft, k_stiff = data.stiffnesses
+    ratio = data.amplitudes[0] / data.amplitudes[1]
+    assert 0.8 * k_stiff / k_soft <= ratio <= 1.25 * k_stiff / k_soft
+
+
+# ---- Fig. 8 -------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("w", [-3.0, -0.2, 0.05, 0.5, 2.0])
+def test_fig8_twosep_converges_to_static_map_at_constant_velocity(w):
+    p = TwoSEP()
+    force, _ = friction_lag.twosep_response(np.full(100_000, w), 1e-4, p)
+    s = friction_lag.static_map([w], p)[0]
+    assert abs(force[-1] - s) < 1e-3 * abs(s)
+
+
+def test_fig8_presliding_state_saturates_at_coulomb_level_after_reversal():
+    p = TwoSEP()
+    q, _, z1 = friction_lag.presliding_cycle(p, amplitude=10.0 / p.k, periods=2)
+    n = len(q)
+    extremes = [n // 8 * k for k in (1, 3, 5, 7)]     # q = +a, -a, +a, -a
+    for i, sign in zip(extremes, (1, -1, 1, -1)):
+        assert abs(z1[i] - sign * p.fc) < 1e-3 * p.fc
+
+
+def test_fig8_frictional_lag_loop_grows_with_frequency():
+    data = friction_lag.compute(frequencies=(0.5, 2.0, 8.0, 32.0), periods=2, steps_per_period=5000)
+    assert np.all(np.diff(data.areas) > 0)
+
+
+# ---- Fig. 9 -------------------------------------------------------------------------------
+
+def test_fig9_loop_area_zero_when_elastic_and_growing_as_mu_falls():
+    mus = (1.0, 0.7, 0.5, 0.3, 0.1)
+    data = restoring_loops.compute(mus=mus)
+    scale = data.peak_torque[0] * np.ptp(data.delta)
+    assert data.areas[0] < 1e-9 * scale
+    assert np.all(data.areas >= 0) and np.all(np.diff(data.areas) > 0)
+    # x does not depend on mu, so the dissipated energy is (1 - mu) times the plastic loop's.
+    per_plastic = data.areas[1:] / (1 - np.array(mus[1:]))
+    assert np.ptp(per_plastic) < 1e-6 * per_plastic.mean()
+
+
+# ---- Sec. 4 lab ---------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def frfs():
+    return lab.impulse_frfs(duration=1.0)
+
+
+def test_lab_frfs_follow_the_rotor_mass_line_above_the_joint_modes(frfs):
+    # Above the transmission and link modes the motor is a free inertia: |W/U| = 1/(w m).
+    band = (frfs.f >= 60) & (frfs.f <= 300)
+    for name, h in frfs.frf.items():
+        ratio = np.median(np.abs(h[band]) * 2 * np.pi * frfs.f[band] * frfs.motor_inertia)
+        assert abs(ratio - 1) < 0.1, name
+
+
+def test_lab_locked_output_holds_the_motor_back_at_low_frequency(frfs):
+    # The locked transmission pulls the kicked motor back, so it ends nearer to where it
+    # started: the low-frequency |W/U| (net displacement per impulse) drops well below free.
+    band = (frfs.f >= 0.5) & (frfs.f <= 5)
+    free = np.abs(frfs.frf["free"][band]).mean()
+    for name in lab.CONDITIONS[1:]:
+        assert np.abs(frfs.frf[name][band]).mean() < 0.8 * free, name
+
+
+def test_lab_gravity_fit_recovers_lever_mass():
+    data = lab.gravity_sweep(duration=25.0)
+    assert abs(data.relative_error) < 0.05
+
+
+def test_lab_step_velocity_peaks_then_gravity_brakes_the_link():
+    data = lab.step_run(duration=6.0)
+    tr = data.trace
+    assert 10 <= data.peak_velocity_deg <= 100
+    assert np.degrees(tr.thetad[-1]) < 0.1 * data.peak_velocity_deg
+    assert 0 < tr.theta[-1] < np.pi / 2
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "core: LoadFriction's tanh regularisation (slope fc/v_eps = 500 N m s/rad) is explicit "
+    "in MuJoCo's step; on the 2e-3 kg m^2 hub at h = 0.5 ms (c h / J = 125 >> 2) any "
+    "disturbance leaves a period-2 hub chatter of ~0.09 rad/s that never dies out"))
+def test_lab_free_arm_comes_to_rest_after_the_impulse():
+    sim = Simulator(sample_rate=lab.FRF_RATE)
+    u = lab.impulse(lab.ArmSpec(), int(lab.FRF_RATE), 100)
+    tr = sim.run(u)
+    assert np.abs(tr.thetad[-int(0.25 * lab.FRF_RATE):]).max() < 1e-3
