@@ -4,8 +4,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mjjoint.experiments import (friction_lag, hysteretic_spring, lab, linear_joint, link_vibration,
-                                 restoring_loops)
+from mjjoint.experiments import (
+    friction_lag,
+    hysteretic_spring,
+    lab,
+    linear_joint,
+    link_vibration,
+    restoring_loops,
+)
 
 EXPERIMENTS = (linear_joint, hysteretic_spring, link_vibration, friction_lag, restoring_loops, lab)
 

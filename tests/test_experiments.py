@@ -8,10 +8,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mjjoint.experiments import friction_lag, hysteretic_spring, lab, linear_joint, link_vibration, restoring_loops
+from mjjoint.experiments import (
+    friction_lag,
+    hysteretic_spring,
+    lab,
+    linear_joint,
+    link_vibration,
+    restoring_loops,
+)
 from mjjoint.physics.twosep import TwoSEP
 from mjjoint.sim import Simulator
-
 
 # ---- Fig. 2 -------------------------------------------------------------------------------
 
@@ -138,19 +144,22 @@ def test_lab_gravity_fit_recovers_lever_mass():
 
 
 def test_lab_step_velocity_peaks_then_gravity_brakes_the_link():
-    data = lab.step_run(duration=6.0)
+    data = lab.step_run(duration=10.0)
     tr = data.trace
     assert 10 <= data.peak_velocity_deg <= 100
-    assert np.degrees(tr.thetad[-1]) < 0.1 * data.peak_velocity_deg
+    assert abs(np.degrees(tr.thetad[-1])) < 0.05 * data.peak_velocity_deg
     assert 0 < tr.theta[-1] < np.pi / 2
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "core: LoadFriction's tanh regularisation (slope fc/v_eps = 500 N m s/rad) is explicit "
-    "in MuJoCo's step; on the 2e-3 kg m^2 hub at h = 0.5 ms (c h / J = 125 >> 2) any "
-    "disturbance leaves a period-2 hub chatter of ~0.09 rad/s that never dies out"))
+    "core: after the kicked rotor stops, it keeps a ~700 Hz dither (rms ~0.06 rad/s, ~1400 "
+    "velocity reversals/s) that does not decay over 7 s at the default 0.5 ms step and shrinks "
+    "with the step (0.02 rad/s at 0.1 ms): a numerical limit cycle of the explicitly integrated "
+    "2SEP friction, visible as a sharp ~660 Hz line in every impulse FRF"))
 def test_lab_free_arm_comes_to_rest_after_the_impulse():
+    # A dissipative joint left alone must come to rest; the FRF's FFT also relies on it.
     sim = Simulator(sample_rate=lab.FRF_RATE)
-    u = lab.impulse(lab.ArmSpec(), int(lab.FRF_RATE), 100)
+    u = lab.impulse(lab.ArmSpec(), t0=0.05, duration=3.0)
     tr = sim.run(u)
-    assert np.abs(tr.thetad[-int(0.25 * lab.FRF_RATE):]).max() < 1e-3
+    last = slice(-int(0.5 * lab.FRF_RATE), None)
+    assert np.sqrt(np.mean(tr.qd[last] ** 2)) < 1e-3

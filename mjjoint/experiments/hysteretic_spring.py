@@ -78,9 +78,9 @@ class Fig4Data:
 
 def compute(example: SpringExample = SpringExample(), duration: float = 8.0, sample_rate: float = 1000.0,
             hysteretic: Transmission = HYSTERETIC) -> Fig4Data:
-    n = int(round(duration * sample_rate))
+    n = round(duration * sample_rate)
     u = np.zeros(n)
-    u[int(round(example.t_impulse * sample_rate))] = example.impulse * sample_rate  # one-sample Dirac
+    u[round(example.t_impulse * sample_rate)] = example.impulse * sample_rate  # one-sample Dirac
     springs = example.transmissions(hysteretic)
     traces = [Simulator(spring_model(example, tr), sample_rate=sample_rate).run(u) for tr in springs]
     return Fig4Data(example, springs[0].k1, traces[0].t, np.array([tr.delta for tr in traces]),

@@ -11,24 +11,29 @@ flexible rod with 1 kg tip, gravity), driven open loop by the motor torque u = k
   twisted, released so that friction holds what it can, then kicked in the same direction.
 * Down-chirp 30 -> 1 Hz (Figs. 12-13): motor velocity, transmission torque tau, and the
   torsion-torque (delta, tau) hysteresis loops.
-* Gravity (Fig. 14 (a)): the lowest constant torque that turns the link over (0.125 N m: on a
-  5 mN m grid, 0.12 N m stalls at 127 deg) drives it slowly round; tau against theta over
+* Gravity (Fig. 14 (a)): a low constant torque, 0.125 N m (0.5 A), 15 % above the
+  m l g / N + Fc = 0.109 N m needed to pass the horizontal, drives the link slowly round
+  (one turn in ~10 s; lower drives only creep over the horizontal); tau against theta over
   whole revolutions is fitted by m l g sin(theta) + c (c: the bearing's Coulomb friction in
   the one direction of motion), and m l compared with the model's, computed from the MjModel
   bodies (subtree mass of the hub times its centre-of-mass lever).
-* Step (Fig. 14 (b)): 0.11 N m (0.44 A) from t = 0.5 s, chosen so that the link velocity peaks
-  at a few tens of deg/s (the chapter reports ~60 deg/s) and gravity then brakes it to a
-  standstill below the horizontal (~65 deg); 0.12 N m would carry it past 90 deg.
+* Step (Fig. 14 (b)): 0.105 N m (0.42 A) from t = 0.5 s, chosen so that the link velocity
+  peaks at a few tens of deg/s (~29; the chapter reports ~60) and gravity then brakes it to a
+  standstill below the horizontal (~57 deg): N (u - Fc) = 4.0 N m stays below m l g = 4.6 N m,
+  so the motor's sliding friction alone holds the link. At 0.11 N m (4.8 N m) only the
+  bearing's Coulomb friction could stop it, and its regularisation (v_eps = 0.15 rad/s) turns
+  that into a weak viscous term at creep speed: the link creeps on past 90 deg.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from ..assets.builder import ArmSpec
+from ..excitation import Chirp, Impulse, Step
 from ..joint import GROUND, JointParams
 from ..sim import Simulator, Trace
 from . import plotting
@@ -66,11 +71,9 @@ class FrfData:
     prestress_delta: float    # deflection left by the prestress program [rad]
 
 
-def impulse(arm: ArmSpec, n: int, start: int) -> np.ndarray:
-    u = np.zeros(n)
-    width = int(round(IMPULSE_WIDTH * FRF_RATE))
-    u[start:start + width] = IMPULSE_CURRENT * arm.k_m
-    return u
+def impulse(arm: ArmSpec, t0: float, duration: float) -> np.ndarray:
+    """The chapter's 5 A, 1.5 ms pulse through k_m, sampled at FRF_RATE."""
+    return Impulse(amplitude=IMPULSE_CURRENT * arm.k_m, t0=t0, width=IMPULSE_WIDTH).sample(FRF_RATE, duration)
 
 
 def prestress_program(level: float, rate: float = FRF_RATE) -> np.ndarray:
@@ -82,9 +85,8 @@ def prestress_program(level: float, rate: float = FRF_RATE) -> np.ndarray:
 
 def impulse_frfs(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), duration: float = 2.0,
                  prestress: float = 0.2, t_impulse: float = 0.05) -> FrfData:
-    n = int(round(duration * FRF_RATE))
-    start = int(round(t_impulse * FRF_RATE))
-    u = impulse(arm, n, start)
+    u = impulse(arm, t_impulse, duration)
+    n = len(u)
     locked = joint.replace(link_joint=GROUND)
     free_sim = Simulator(sample_rate=FRF_RATE, arm=arm, joint=joint)
     locked_sim = Simulator(sample_rate=FRF_RATE, arm=arm, joint=locked)
@@ -123,18 +125,12 @@ class ChirpData:
     f_end: float
 
 
-def down_chirp(amplitude: float = 0.2, f_start: float = 30.0, f_end: float = 1.0, duration: float = 20.0,
-               rate: float = 1000.0) -> np.ndarray:
-    """u = amplitude sin(phi), instantaneous frequency linear from f_start down to f_end."""
-    t = np.arange(int(round(duration * rate))) / rate
-    return amplitude * np.sin(2 * np.pi * (f_start * t + (f_end - f_start) * t ** 2 / (2 * duration)))
-
-
 def chirp_run(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), amplitude: float = 0.2,
               duration: float = 20.0) -> ChirpData:
     """0.2 N m (0.8 A): slides the motor through its friction at every cycle, link swings ~10 deg."""
-    u = down_chirp(amplitude, duration=duration)
-    return ChirpData(Simulator(arm=arm, joint=joint).run(u), 30.0, 1.0)
+    chirp = Chirp(amplitude=amplitude, f_start=30.0, f_end=1.0, sweep="linear")
+    sim = Simulator(arm=arm, joint=joint)
+    return ChirpData(sim.run(chirp.sample(sim.sample_rate, duration)), chirp.f_start, chirp.f_end)
 
 
 def draw_chirp(data: ChirpData, path: str | Path) -> Path:
@@ -176,7 +172,7 @@ class GravityData:
 def gravity_sweep(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), drive: float = 0.125,
                   duration: float = 30.0) -> GravityData:
     sim = Simulator(arm=arm, joint=joint)
-    tr = sim.run(np.full(int(round(duration * sim.sample_rate)), drive))
+    tr = sim.run(np.full(round(duration * sim.sample_rate), drive))
     turns = np.floor(tr.theta / (2 * np.pi))
     if turns[-1] < 2:
         raise ValueError(f"drive={drive:g} N m turned the link over {int(turns[-1])} times in {duration:g} s; "
@@ -217,11 +213,10 @@ class StepData:
         return float(np.degrees(self.trace.thetad.max()))
 
 
-def step_run(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), step: float = 0.11,
-             t_step: float = 0.5, duration: float = 6.0) -> StepData:
+def step_run(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), step: float = 0.105,
+             t_step: float = 0.5, duration: float = 10.0) -> StepData:
     sim = Simulator(arm=arm, joint=joint)
-    t = np.arange(int(round(duration * sim.sample_rate))) / sim.sample_rate
-    return StepData(sim.run(np.where(t >= t_step, step, 0.0)), step, t_step)
+    return StepData(sim.run(Step(amplitude=step, t0=t_step).sample(sim.sample_rate, duration)), step, t_step)
 
 
 def draw_step(data: StepData, path: str | Path) -> Path:

@@ -115,7 +115,7 @@ class Fig2Data:
 def simulate_frf(joint: LinearJoint, K: float | None, duration: float, sample_rate: float,
                  timestep: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """theta/U from the link-velocity response to a one-sample torque pulse at t = 0."""
-    n = int(round(duration * sample_rate))
+    n = round(duration * sample_rate)
     u = np.zeros(n)
     u[0] = sample_rate  # unit area: a discrete Dirac
     _, w = link_response(joint, K, u, sample_rate, timestep)
@@ -131,7 +131,7 @@ def compute(joint: LinearJoint = LinearJoint(), stiffnesses: tuple[float, ...] =
             step_duration: float = 0.5, frf_duration: float = 4.0, frf_rate: float = 10000.0) -> Fig2Data:
     """Step responses at 1 kHz and impulse FRFs at ``frf_rate`` (Nyquist above K = 1e8's 2.25 kHz)."""
     rate = 1000.0
-    n = int(round(step_duration * rate))
+    n = round(step_duration * rate)
     u = np.ones(n)
     t = np.arange(n) / rate
     rigid, _ = link_response(joint, None, u, rate, timestep=1e-5)

@@ -79,7 +79,7 @@ class Fig6Data:
 
 def compute(load: LinkLoad = LinkLoad(), stiffnesses: tuple[float, ...] = STIFFNESSES, step: float = 1.0,
             duration: float = 0.5, t_step: float = 0.02, sample_rate: float = 10000.0) -> Fig6Data:
-    n = int(round(duration * sample_rate))
+    n = round(duration * sample_rate)
     t = np.arange(n) / sample_rate
     tau = first_order_lag(np.where(t >= t_step, step, 0.0), LAG_CUTOFF, sample_rate)
     th, tl, al = [], [], []
