@@ -7,14 +7,13 @@ fitted model with them, and the held-out NRMSE before and after; or that nothing
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 from ..diagnosis.loop import DiagnoseOptions
 from ..identify.effects import EFFECTS
 from .errors import CliError
-from .fit import add_problem_options, effect_names, load_problem, run_info
+from .fit import add_problem_options, effect_names, prepare, run_info
 
 DEFAULT_OUT = Path("out/diagnose")
 OPTIONS = DiagnoseOptions()
@@ -68,15 +67,10 @@ def options_from_args(args: argparse.Namespace) -> DiagnoseOptions:
 
 def run(args: argparse.Namespace) -> int:
     from ..diagnosis.loop import diagnose
-    from ..report.output import OutputDir
     from ..report.progress import StepLog
 
     options = options_from_args(args)
-    out = OutputDir(args.out)
-    out.check()
-    problem = load_problem(args)
-    for note in problem.notes:
-        print(f"note: {note}", file=sys.stderr)
+    out, problem = prepare(args)
     start = time.perf_counter()
     diag = diagnose(problem.predictor, problem.base, options, progress=StepLog())
     seconds = time.perf_counter() - start

@@ -195,6 +195,17 @@ def run_info(command: str, args: argparse.Namespace, problem: Problem) -> dict:
             "windows": len(problem.predictor.starts), "heldout_windows": int(problem.predictor.holdout.sum())}
 
 
+def prepare(args: argparse.Namespace):
+    """Output folder checked before any work, then the recording and starting structure loaded."""
+    from ..report.output import OutputDir
+    out = OutputDir(args.out)
+    out.check()
+    problem = load_problem(args)
+    for note in problem.notes:
+        print(f"note: {note}", file=sys.stderr)
+    return out, problem
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "fit", help="fit a model's parameters to a recording (95 %% intervals, held-out NRMSE)",
@@ -208,16 +219,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..identify.fit import fit
-    from ..report.output import OutputDir
     from ..report.progress import FitProgress
 
     if args.max_iter < 1:
         raise CliError(f"--max-iter {args.max_iter} must be at least 1")
-    out = OutputDir(args.out)
-    out.check()
-    problem = load_problem(args)
-    for note in problem.notes:
-        print(f"note: {note}", file=sys.stderr)
+    out, problem = prepare(args)
     start = time.perf_counter()
     with FitProgress(args.max_iter) as progress:
         result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress)
