@@ -19,7 +19,7 @@ from pathlib import Path
 import mujoco
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # scripts/ is not a package
-from bench_step import RolloutTimer, StepLoopTimer, bare_spec  # the shared measurement
+from bench_step import RolloutTimer, StepLoopTimer, bare_spec, best_us_per_step  # the shared measurement
 
 from mjjoint.assets import build_arm, load_model
 from mjjoint.assets.builder import ASSETS_DIR
@@ -49,13 +49,7 @@ def main() -> None:
         for kind, model in (("plugin", plugin), ("bare", bare)):
             timers[("rollout", arm, kind)] = RolloutTimer(model, args.steps)
             timers[("mj_step loop", arm, kind)] = StepLoopTimer(model, args.steps)
-    for t in timers.values():  # warm-up: numba caches, pools, page faults
-        t()
-    best = {k: float("inf") for k in timers}
-    for _ in range(args.repeats):
-        for k, t in timers.items():
-            best[k] = min(best[k], t())
-    us = {k: v / args.steps * 1e6 for k, v in best.items()}
+    us = best_us_per_step(timers, args.steps, args.repeats)
 
     print(f"mujoco {mujoco.__version__}; {args.steps} steps of {models['arm3'][0].opt.timestep * 1e3:g} ms, "
           f"best of {args.repeats}, single thread")

@@ -68,6 +68,17 @@ def controls(model: mujoco.MjModel, steps: int) -> np.ndarray:
     return np.repeat((0.5 * np.sin(2 * np.pi * t))[:, None], model.nu, axis=1)
 
 
+def best_us_per_step(timers: dict, steps: int, repeats: int) -> dict:
+    """Interleaved repeats after a warm-up (numba caches, pools, page faults); best of each, in us/step."""
+    for t in timers.values():
+        t()
+    best = {k: float("inf") for k in timers}
+    for _ in range(repeats):
+        for k, t in timers.items():
+            best[k] = min(best[k], t())
+    return {k: v / steps * 1e6 for k, v in best.items()}
+
+
 class RolloutTimer:
     def __init__(self, model: mujoco.MjModel, steps: int):
         self.model, self.data = model, mujoco.MjData(model)
@@ -150,13 +161,7 @@ def main() -> None:
         ("mj_step loop", "plugin"): StepLoopTimer(plugin, args.steps),
         ("mj_step loop", "callback"): StepLoopTimer(bare, args.steps, callback=True),
     }
-    for t in timers.values():  # warm-up: numba caches, pools, page faults
-        t()
-    best = {k: float("inf") for k in timers}
-    for _ in range(args.repeats):
-        for k, t in timers.items():
-            best[k] = min(best[k], t())
-    us = {k: v / args.steps * 1e6 for k, v in best.items()}
+    us = best_us_per_step(timers, args.steps, args.repeats)
 
     # The Python path must be the same physics as the plugin, or the comparison means nothing.
     same = np.max(np.abs(timers[("mj_step loop", "plugin")].run() - timers[("mj_step loop", "callback")].run()))
