@@ -17,6 +17,8 @@ import mujoco
 import numpy as np
 
 from ..assets import ArmSpec, build_arm, load_model
+from ..coupling.kernels import transmitted
+from ..coupling.layout import NSTATE
 from ..joint import JointParams
 from ..params import check
 from ..sim import joint_indices
@@ -99,8 +101,7 @@ def record(arm: ArmSpec, joint: JointParams, program: LabProgram = LabProgram(),
     alpha = 1 - math.exp(-2 * math.pi * controller.velocity_cutoff / rate)
     cols = {k: np.empty(n) for k in ("t", "u", "q", "theta", "tau")}
     q_prev, v_filt = 0.0, 0.0
-    from ..coupling.kernels import transmitted
-    adr = ji.state_start - (mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS) - model.npluginstate)
+    adr = int(model.plugin_stateadr[ji.instance])
     for i in range(n):
         q = quantise(np.array(data.qpos[ji.motor_qpos]), sensors.resolver_bits).item()
         th = quantise(np.array(data.qpos[ji.link_qpos]), sensors.encoder_bits).item()
@@ -108,7 +109,7 @@ def record(arm: ArmSpec, joint: JointParams, program: LabProgram = LabProgram(),
         q_prev = q
         u = controller.kp * (q_ref[i] - q) - controller.kd * v_filt
         u = min(max(u, -controller.u_max), controller.u_max)
-        st = data.plugin_state[adr:adr + 6]
+        st = data.plugin_state[adr:adr + NSTATE]
         tau = transmitted(ji.block, st, data.qpos[ji.motor_qpos], data.qvel[ji.motor_dof],
                           data.qpos[ji.link_qpos], data.qvel[ji.link_dof])
         cols["t"][i], cols["u"][i], cols["q"][i], cols["theta"][i] = data.time, u, q, th

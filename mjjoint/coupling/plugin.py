@@ -129,11 +129,9 @@ def register_model(model_or_address, instance: int | None = None) -> list[int]:
 
 
 def _init(m_addr, d_addr, instance):
-    global last_init_error
     try:
         (row,) = register_model(m_addr, instance)
     except Exception as exc:  # noqa: BLE001 - a C caller cannot take a Python exception
-        last_init_error = str(exc)
         print(f"mjjoint: {exc}", file=sys.stderr)
         return -1
     slots = abi._read_u64(d_addr + abi.offsets().d_plugin_data)

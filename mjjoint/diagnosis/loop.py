@@ -126,19 +126,13 @@ def residual_location(predictor: Predictor, structure: Structure, seed: int = 0)
     n = predictor.nwin_samples
     idx = (predictor.starts[:, None] + np.arange(n)[None, :]).ravel()
     meas, sim = {}, {}
-    for s in ("q", "delta", "tau"):
-        if predictor.meas.get(s) is None:
-            continue
-        meas[s] = predictor.meas[s].ravel()
-        sim[s] = np.nan_to_num(pred[s].ravel())
+    for s in predictor.signals:
+        # q drifts within a window by construction: locate on its deviation from the window start.
+        start = predictor.meas[s][:, :1] if s == "q" else 0.0
+        meas[s] = (predictor.meas[s] - start).ravel()
+        sim[s] = np.nan_to_num(pred[s] - start).ravel()
     cond = operating_conditions(m.t, m.q, m.theta, m.u, m.gear_ratio, m.tau)
     cond = {k: np.asarray(v)[idx] for k, v in cond.items()}
-    # q drifts within a window by construction: locate on its deviation from the window start.
-    for key in list(meas):
-        if key == "q":
-            start = predictor.meas["q"][:, :1]
-            meas[key] = (predictor.meas["q"] - start).ravel()
-            sim[key] = np.nan_to_num(pred["q"] - start).ravel()
     t = m.t[idx]
     return locate(t, meas, sim, cond, seed=seed).as_dict()
 

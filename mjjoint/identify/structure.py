@@ -51,8 +51,7 @@ class Structure:
     # ---- optimiser coordinates ---------------------------------------------------------
     def vector(self, names=None) -> np.ndarray:
         ps = self._select(names)
-        return np.array([p.to_unit(np.clip(self.values[p.name], p.lo, p.hi) if p.log else self.values[p.name])
-                         for p in ps])
+        return np.array([p.to_unit(float(np.clip(self.values[p.name], p.lo, p.hi))) for p in ps])
 
     def from_vector(self, x: np.ndarray, names=None) -> "Structure":
         ps = self._select(names)
