@@ -7,7 +7,7 @@ Three lines to a simulated recording::
     trace = mjjoint.simulate(mjjoint.Chirp().sample(1000, 5))
     trace.to_csv("chirp.csv")
 """
-from .assets import ArmSpec, build_arm, load_model, scene_path
+from .assets import ArmSpec, DriveSpec, build_arm, build_drive, load_model, scene_path
 from .coupling.plugin import register, register_model
 from .excitation import EXCITATIONS, Chirp, FromFile, Impulse, Multisine, Step
 from .joint import GROUND, JointParams, stable_timestep
@@ -25,9 +25,9 @@ from .viz import log_traces
 __version__ = "0.1.0"
 
 __all__ = [
-    "ArmSpec", "BoucWen", "Chirp", "EXCITATIONS", "FromFile", "GROUND", "Impulse", "JointParams",
+    "ArmSpec", "BoucWen", "DriveSpec", "Chirp", "EXCITATIONS", "FromFile", "GROUND", "Impulse", "JointParams",
     "LoadFriction", "ModelFile", "MultiRecording", "Multisine", "Recording", "RecordingError",
     "Simulator", "StaticFriction", "Step", "TorqueRipple", "Trace", "Transmission", "TwoSEP",
-    "build_arm", "dump_model_file", "load_model", "load_model_file", "log_traces", "read_recording",
+    "build_arm", "build_drive", "dump_model_file", "load_model", "load_model_file", "log_traces", "read_recording",
     "register", "register_model", "scene_path", "simulate", "stable_timestep", "write_recording",
 ]

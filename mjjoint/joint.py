@@ -2,7 +2,9 @@
 
 A joint is the chapter's topology (Fig. 1, Fig. 7): motor friction, transmission (stiffness,
 hysteresis, damping, backlash), load bearing friction, and optionally a motor torque ripple.
-Each term can be switched off (``None``). The MJCF plugin instance carries exactly these
+Each term can be switched off (``None``); without a transmission the joint is a direct drive
+whose motor joint carries the load itself (a linear axis, a servo with one encoder): its
+output side must then be ``GROUND``. The MJCF plugin instance carries exactly these
 values as flat config keys ``<section>`` (the term's kind, or ``none``) and
 ``<section>.<field>``; ``JointParams.to_config``/``from_config`` convert both ways, and the
 plugin's init parses the config with the same code, so the MJCF is the model.
@@ -29,7 +31,6 @@ SECTIONS: dict[str, dict[str, type]] = {
     "load_friction": {"bearing": LoadFriction},
     "ripple": {"sine": TorqueRipple},
 }
-REQUIRED = ("transmission",)
 # A joint name meaning "fixed to the world": cuts that side free of motion (locked output,
 # Fig. 11; or a spring to ground, Fig. 4).
 GROUND = "world"
@@ -42,7 +43,7 @@ class JointParams:
     motor_joint: str = "motor"   # joint of the rotor (q), or "world" for a fixed input
     link_joint: str = "link"     # joint of the gear output (theta), or "world" for a locked output
     friction: TwoSEP | StaticFriction | None = TwoSEP()
-    transmission: Transmission = Transmission()
+    transmission: Transmission | None = Transmission()
     load_friction: LoadFriction | None = LoadFriction()
     ripple: TorqueRipple | None = None
 
@@ -52,10 +53,18 @@ class JointParams:
                 raise ValueError(f"{name}={getattr(self, name)!r} must be a non-empty joint name")
         if self.motor_joint == self.link_joint:
             raise ValueError(f"motor_joint and link_joint are both {self.motor_joint!r}; they must differ")
+        if self.transmission is None and self.link_joint != GROUND:
+            raise ValueError(f"transmission=none (a direct drive) needs link_joint={GROUND!r}, "
+                             f"got {self.link_joint!r}")
+
+    @property
+    def direct_drive(self) -> bool:
+        """No transmission: the motor joint is the output (see the module docstring)."""
+        return self.transmission is None
 
     @property
     def gear_ratio(self) -> float:
-        return self.transmission.gear_ratio
+        return 1.0 if self.transmission is None else self.transmission.gear_ratio
 
     def replace(self, **changes) -> "JointParams":
         return dataclasses.replace(self, **changes)
@@ -82,7 +91,7 @@ class JointParams:
         for section, kinds in SECTIONS.items():
             kind = cfg.get(section, "")
             values = {k.split(".", 1)[1]: v for k, v in cfg.items() if k.startswith(section + ".") and v != ""}
-            if kind == "none" and section not in REQUIRED:
+            if kind == "none":
                 terms[section] = None
                 continue
             if not kind and not values:  # not mentioned at all: the term's default
@@ -90,7 +99,7 @@ class JointParams:
                 continue
             kind = kind or next(iter(kinds))  # fields given without a kind: the first kind
             if kind not in kinds:
-                allowed = ([] if section in REQUIRED else ["none"]) + list(kinds)
+                allowed = ["none", *kinds]
                 raise ValueError(f"{section}={kind!r} is not a known kind (allowed: {', '.join(allowed)})")
             klass = kinds[kind]
             names = {f.name for f in dataclasses.fields(klass)}
@@ -108,13 +117,16 @@ class JointParams:
             except ValueError as exc:
                 raise ValueError(f"{section}.{exc}") from None
         hysteresis = terms.pop("hysteresis")
-        transmission = dataclasses.replace(terms.pop("transmission"), hysteresis=hysteresis)
+        transmission = terms.pop("transmission")
+        if transmission is not None:
+            transmission = dataclasses.replace(transmission, hysteresis=hysteresis)
         return cls(motor_joint=cfg.get("motor_joint", "motor"), link_joint=cfg.get("link_joint", "link"),
                    transmission=transmission, **terms)
 
     def _terms(self) -> dict[str, object]:
         return {"friction": self.friction, "transmission": self.transmission,
-                "hysteresis": self.transmission.hysteresis, "load_friction": self.load_friction,
+                "hysteresis": None if self.transmission is None else self.transmission.hysteresis,
+                "load_friction": self.load_friction,
                 "ripple": self.ripple}
 
 
@@ -180,12 +192,14 @@ def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: flo
         if not value > 0:  # inf is allowed: a side fixed to the world
             raise ValueError(f"{name}={value!r} is outside the allowed range (0, inf]")
     tr = params.transmission
-    n = tr.gear_ratio
-    d = RATED_DEFLECTION
-    k_max = tr.k1 + 2 * tr.k2 * d + 3 * tr.k3 * d * d
-    j_red = 1.0 / (1.0 / link_inertia + 1.0 / (motor_inertia * n * n))
-    groups = [({"transmission.k1/k3 (stiffness)": k_max / j_red},
-               {"transmission.damping": tr.damping / j_red})]
+    groups = []
+    if tr is not None:
+        n = tr.gear_ratio
+        d = RATED_DEFLECTION
+        k_max = tr.k1 + 2 * tr.k2 * d + 3 * tr.k3 * d * d
+        j_red = 1.0 / (1.0 / link_inertia + 1.0 / (motor_inertia * n * n))
+        groups.append(({"transmission.k1/k3 (stiffness)": k_max / j_red},
+                       {"transmission.damping": tr.damping / j_red}))
     f = params.friction
     if isinstance(f, TwoSEP):
         groups.append(({"friction.k (pre-sliding stiffness)": 2 * (f.fs + abs(f.asym)) * f.k / motor_inertia}, {}))
@@ -195,4 +209,4 @@ def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: flo
     if params.load_friction is not None:
         lf = params.load_friction
         groups.append(({}, {"load_friction.v_eps (Coulomb slope)": (lf.fc / lf.v_eps + lf.viscous) / link_inertia}))
-    return min((_group_timestep(*g) for g in groups), key=lambda r: r[0])
+    return min((_group_timestep(*g) for g in groups), key=lambda r: r[0], default=(float("inf"), ""))

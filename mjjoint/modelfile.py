@@ -28,7 +28,7 @@ import mujoco
 import yaml
 
 from .assets import ArmSpec, load_model
-from .joint import REQUIRED, SECTIONS, JointParams
+from .joint import SECTIONS, JointParams
 from .params import check, from_mapping, is_number
 
 SUFFIXES = (".toml", ".yaml", ".yml", ".xml")
@@ -102,6 +102,11 @@ def _typed(name: str, value: Any, default: Any) -> Any:
         raise ValueError(f"{name}={value!r} must be {want}")
     return value
 
+
+
+# A model file describes the elastic arm, whose gear cannot be left out (direct drives are
+# built in Python: mjjoint.assets.drive).
+REQUIRED = ("transmission",)
 
 
 def _term(section: str, values: dict[str, Any] | None, default: Any, **objects: Any):

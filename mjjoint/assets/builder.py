@@ -49,6 +49,7 @@ class ArmSpec:
     k_m: float = 0.25               # motor torque constant [N m/A]
     gravity: float = 9.81           # [m/s^2]; 0 (or False) switches gravity off
     input_delay: float = 0.0        # [s] current-to-torque delay (native actuator delay)
+    input_offset: float = 0.0       # [N m] constant motor torque added to u (amplifier offset)
     timestep: float = 5e-4          # [s]
 
     def __post_init__(self) -> None:
@@ -66,11 +67,38 @@ class ArmSpec:
         check("timestep", self.timestep, 1e-6, 0.01)
         check("gravity", self.gravity, 0.0, 100.0)
         check("input_delay", self.input_delay, 0.0, MAX_DELAY_SAMPLES * self.timestep)
+        check("input_offset", self.input_offset, -1e3, 1e3)
 
     @property
     def link_inertia(self) -> float:
         """Rigid-link inertia about the hub [kg m^2] (for stability estimates)."""
         return self.hub_inertia + self.rod_mass * self.rod_length ** 2 / 3 + self.tip_mass * self.rod_length ** 2
+
+    @property
+    def scales(self) -> dict[str, float]:
+        """Orders of motor-side torque, speed and angle: the units the effect ranges are set in."""
+        return {"force": 1.0, "speed": 1.0, "position": 1.0}
+
+    def unit(self, rotary: str) -> str:
+        """The unit of a quantity given in the motor's rotary units (the same here)."""
+        return rotary
+
+
+def set_input(act, k_m: float, offset: float, delay: float) -> None:
+    """Motor input u = k_m ctrl + offset, applied ``delay`` late (native actuator terms).
+
+    The offset is an affine actuator bias in ctrl units (MuJoCo multiplies the actuator force,
+    gain ctrl + bias, by the gear k_m).
+    """
+    act.gear[0] = k_m
+    if offset != 0.0:
+        act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        act.biasprm[0] = offset / k_m
+    else:
+        act.biastype = mujoco.mjtBias.mjBIAS_NONE
+    if delay > 0:
+        act.delay = delay
+        act.nsample = MAX_DELAY_SAMPLES + 2
 
 
 def _rebuild_rod(spec: mujoco.MjSpec, arm: ArmSpec) -> None:
@@ -116,11 +144,7 @@ def build_arm(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), *,
     rotor.inertia = [transverse, arm.motor_inertia, transverse]
     spec.body("hub").inertia = [arm.hub_inertia] * 3
     _rebuild_rod(spec, arm)
-    act = spec.actuator("current")
-    act.gear[0] = arm.k_m
-    if arm.input_delay > 0:
-        act.delay = arm.input_delay
-        act.nsample = MAX_DELAY_SAMPLES + 2
+    set_input(spec.actuator("current"), arm.k_m, arm.input_offset, arm.input_delay)
     # The home keyframe must match the (possibly new) number of joints.
     for key in spec.keys:
         key.qpos = np.zeros(2 + arm.segments)

@@ -13,7 +13,7 @@ from pathlib import Path
 from ..diagnosis.loop import DiagnoseOptions
 from ..identify.effects import EFFECTS
 from .errors import CliError
-from .fit import add_problem_options, effect_names, prepare, run_info
+from .fit import Problem, add_problem_options, effect_names, prepare, run_info
 
 DEFAULT_OUT = Path("out/diagnose")
 OPTIONS = DiagnoseOptions()
@@ -23,10 +23,14 @@ examples:
   mjjoint diagnose rec.csv --gear-ratio 160 --base coulomb_friction,viscous_friction,linear_stiffness
   mjjoint diagnose rec.csv --model my_joint.toml --max-rounds 2 --out out/run1
   mjjoint diagnose rec.csv --gear-ratio 160 --candidates backlash,input_delay,torque_ripple
+  mjjoint diagnose DATA_EMPS.mat --plant linear --columns t=t,u=vir,q=qm,theta=qm --scales u=35.15
+  mjjoint diagnose arm.csv --model arm.toml --joint 1,2   each joint of a multi-joint recording
 
 writes DIR/index.html (verdict, per-step evidence, figures), diagnosis.json (same inputs and
 seed give the same bytes), traces.rrd (measured, before and after; 'rerun traces.rrd'),
-PNGs and run.json (wall time); DIR appears only when complete.
+PNGs and run.json (wall time); DIR appears only when complete. A multi-joint recording
+(u1,q1,theta1,tau1,u2,...) is diagnosed joint by joint into DIR/joint{{j}}/; DIR/diagnosis.json
+says which joints miss something ("mismatch_in") and DIR/index.html links the reports.
 
 candidate effects: {", ".join(EFFECTS)}
 """
@@ -71,6 +75,9 @@ def run(args: argparse.Namespace) -> int:
 
     options = options_from_args(args)
     out, problem = prepare(args)
+    if not isinstance(problem, Problem):
+        from .per_joint import diagnose_joints
+        return diagnose_joints(args, out, problem, options)
     start = time.perf_counter()
     diag = diagnose(problem.predictor, problem.base, options, progress=StepLog())
     seconds = time.perf_counter() - start

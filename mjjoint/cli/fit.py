@@ -2,7 +2,8 @@
 
 Also the shared input side of ``fit`` and ``diagnose``: reading the recording, the windowed
 predictor, and the starting structure from ``--base`` (effect names) or ``--model`` (a model
-file whose terms are mapped onto effect names, its values as initial values).
+file whose terms are mapped onto effect names, its values as initial values). A multi-joint
+recording goes to ``per_joint``, which runs the same on each joint.
 """
 from __future__ import annotations
 
@@ -13,17 +14,19 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..assets import ArmSpec
-from ..identify.effects import EFFECTS, SEED_EFFECTS, check_effects
+from ..assets import ArmSpec, DriveSpec
+from ..assets.multi import read_model_file
+from ..identify.effects import EFFECTS, SEED_EFFECTS, check_effects, plant_effects
 from ..identify.structure import Structure
 from ..identify.windows import Measured, Predictor, WindowDesign
 from ..joint import JointParams
-from ..modelfile import ModelFile, load_model_file
+from ..modelfile import ModelFile
 from ..physics.twosep import TwoSEP
 from ..recordings import Recording, parse_column_map, parse_scales, read_recording
 from .errors import CliError
 
 DEFAULT_OUT = Path("out/fit")
+PLANTS = {"arm": "", "linear": "slide", "rotary": "hinge"}  # --plant -> direct drive joint type
 MINIMAL = "minimal"
 
 EPILOG = """\
@@ -32,27 +35,62 @@ examples:
   mjjoint fit rec.csv --gear-ratio 160 --base linear_stiffness,coulomb_friction --out out/fit1
   mjjoint fit rec.mat --gear-ratio 100 --columns t=time,u=cur,q=qm,theta=ql --scales q=deg,theta=deg --k-m 0.25
   mjjoint fit rec.csv --model examples/stiff_linear.yaml --max-iter 40
+  mjjoint fit DATA_EMPS.mat --plant linear --columns t=t,u=vir,q=qm,theta=qm --scales u=35.15 \
+      --base coulomb_friction,viscous_friction,input_offset
+  mjjoint fit arm.csv --gear-ratio 160,100 --joint 2            joint 2 of a multi-joint recording (u1,q1,...)
 
 writes DIR/fit.json (parameters, 95 % intervals, warnings, NRMSE), heldout_windows.png,
 residual.png, traces.rrd, index.html and run.json; DIR appears only when complete.
 
+A multi-joint recording (columns u1,q1,theta1,tau1,u2,...) is fitted joint by joint: DIR/joint{j}/
+holds each joint's files, DIR/fit.json and DIR/index.html gather them (docs/multijoint.md).
+
 effects (--base): minimal, """ + ", ".join(EFFECTS)
+
+
+def numbers(text: str) -> float | tuple[float, ...]:
+    """A number, or a comma list of numbers: one per joint of a multi-joint recording."""
+    try:
+        values = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number or a comma list of numbers") from None
+    return values[0] if len(values) == 1 else values
+
+
+def joint_numbers(text: str) -> tuple[int, ...]:
+    """Joint numbers J[,K...] (from 1, as the column suffixes), in increasing order."""
+    try:
+        joints = sorted({int(x) for x in text.split(",")})
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a joint number or a comma list of them") from None
+    if joints[0] < 1:
+        raise argparse.ArgumentTypeError(f"joints are numbered from 1, got {joints[0]}")
+    return tuple(joints)
 
 
 def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
     """Options shared by fit and diagnose: the recording, the starting model, windows, output."""
-    p.add_argument("recording", type=Path, metavar="REC", help="recording: .csv (t,u,q,theta[,tau]), .npz or .mat")
+    p.add_argument("recording", type=Path, metavar="REC",
+                   help="recording: .csv (t,u,q,theta[,tau]; several joints: t,u1,q1,theta1,...), .npz or .mat")
     r = p.add_argument_group("recording")
-    r.add_argument("--gear-ratio", type=float, metavar="N",
-                   help="gear ratio (required unless --model gives it)")
+    r.add_argument("--gear-ratio", type=numbers, metavar="N",
+                   help="gear ratio (required unless --model gives it); N1,N2,... one per joint")
     r.add_argument("--columns", metavar="MAP", help="file names of the signals, e.g. t=time,u=cur,q=qm,theta=ql")
     r.add_argument("--scales", metavar="MAP", help="factors to SI, e.g. q=deg,theta=deg,u=2.5")
-    r.add_argument("--k-m", type=float, metavar="K", help="torque constant [N m/A]: u is recorded as a current")
+    r.add_argument("--k-m", type=numbers, metavar="K",
+                   help="torque constant [N m/A]: u is recorded as a current; K1,K2,... one per joint")
+    r.add_argument("--joint", type=joint_numbers, metavar="J[,K]",
+                   help="joints of a multi-joint recording to work on (default: all)")
     m = p.add_argument_group("starting model (default: the seed paper's full joint)")
     x = m.add_mutually_exclusive_group()
     x.add_argument("--model", type=Path, metavar="FILE",
-                   help="model file (.toml/.yaml): its terms become effects, its values initial values")
+                   help="model file (.toml/.yaml): its terms become effects, its values initial values; "
+                        "a [[joint]] file gives each joint of a multi-joint recording its own")
     x.add_argument("--base", metavar="LIST", help="comma list of effect names ('minimal': none)")
+    m.add_argument("--plant", choices=PLANTS, default="arm",
+                   help="arm: the elastic joint (q and theta measured); linear or rotary: a direct drive, "
+                        "one joint and no gear, only q used (map theta to q's column, e.g. theta=qm); "
+                        "default arm")
     w = p.add_argument_group("prediction windows")
     w.add_argument("--window-length", type=float, default=WindowDesign.length, metavar="S",
                    help=f"prediction horizon of each window (default {WindowDesign.length:g} s)")
@@ -71,15 +109,15 @@ def effect_names(text: str, option: str, known: tuple[str, ...] = tuple(EFFECTS)
     return names
 
 
-def effect_list(text: str, option: str = "--base") -> tuple[str, ...]:
+def effect_list(text: str, option: str = "--base", known: tuple[str, ...] = tuple(EFFECTS)) -> tuple[str, ...]:
     """The effects of a starting structure ('minimal' alone: none), prerequisites checked."""
-    names = effect_names(text, option, (MINIMAL, *EFFECTS))
+    names = effect_names(text, option, (MINIMAL, *known))
     if names == [MINIMAL]:
         return ()
     if MINIMAL in names:
         raise CliError(f"{option}: '{MINIMAL}' means no effect; do not list it with others")
     try:
-        return check_effects(names)
+        return check_effects(names, known)
     except ValueError as exc:
         raise CliError(f"{option}: {exc}") from None
 
@@ -162,29 +200,60 @@ class Problem:
     notes: list[str]
 
 
-def load_problem(args: argparse.Namespace) -> Problem:
-    """Recording, predictor and starting structure from the command line (one-line errors)."""
+def read_input(args: argparse.Namespace, gear_ratio: float | None, k_m: float | None):
+    """The recording named on the command line, with its column map and scales."""
+    return read_recording(args.recording,
+                          columns=None if args.columns is None else parse_column_map(args.columns),
+                          scales=None if args.scales is None else parse_scales(args.scales),
+                          gear_ratio=gear_ratio, k_m=k_m)
+
+
+def load_problem(args: argparse.Namespace):
+    """Recording, predictor and starting structure from the command line (one-line errors).
+
+    A multi-joint recording (or an option only such a recording takes) gives a
+    ``per_joint.JointProblems`` instead of a ``Problem``.
+    """
+    from . import per_joint
+
     for flag, value in (("--gear-ratio", args.gear_ratio), ("--k-m", args.k_m),
                         ("--window-length", args.window_length)):
-        if value is not None and not value > 0:
-            raise CliError(f"{flag} {value:g} must be positive")
+        for v in value if isinstance(value, tuple) else (value,):
+            if v is not None and not v > 0:
+                raise CliError(f"{flag} {v:g} must be positive")
+    if args.plant != "arm":
+        return _drive_problem(args)
+    model = None if args.model is None else read_model_file(args.model)
+    if per_joint.requested(args, model):
+        return per_joint.load_problems(args, model)
     notes: list[str] = []
-    if args.model is not None:
-        base, notes = structure_from_model(load_model_file(args.model), args.gear_ratio)
+    if model is not None:
+        base, notes = structure_from_model(model, args.gear_ratio)
     else:
         if args.gear_ratio is None:
             raise CliError("--gear-ratio N is required (or a --model file that gives it)")
         effects = SEED_EFFECTS if args.base is None else effect_list(args.base)
         base = Structure.create(effects, ArmSpec(), args.gear_ratio)
-    rec = read_recording(args.recording,
-                         columns=None if args.columns is None else parse_column_map(args.columns),
-                         scales=None if args.scales is None else parse_scales(args.scales),
-                         gear_ratio=base.gear_ratio, k_m=args.k_m)
+    rec = read_input(args, base.gear_ratio, args.k_m)
     if not isinstance(rec, Recording):
-        raise CliError(f"{args.recording}: holds {rec.n_joints} joints; fit and diagnose take one joint's recording")
+        return per_joint.load_problems(args, model, rec)
     design = WindowDesign(length=args.window_length, seed=args.seed)
     predictor = Predictor(Measured.from_recording(rec, base.gear_ratio), design)
     return Problem(str(args.recording), predictor, base, notes)
+
+
+def _drive_problem(args: argparse.Namespace) -> Problem:
+    """A direct drive (``--plant linear|rotary``): its inertia, then the effects listed."""
+    if args.model is not None:
+        raise CliError(f"--plant {args.plant}: a direct drive starts from --base, not a --model file")
+    nominal = DriveSpec(joint_type=PLANTS[args.plant])
+    effects = () if args.base is None else effect_list(args.base, known=plant_effects(nominal))
+    base = Structure.create(effects, nominal, 1.0)
+    rec = read_input(args, 1.0, args.k_m)
+    if not isinstance(rec, Recording):
+        raise CliError(f"--plant {args.plant} takes a single-joint recording")
+    design = WindowDesign(length=args.window_length, seed=args.seed)
+    return Problem(str(args.recording), Predictor(Measured.from_recording(rec, 1.0, output=False), design), base, [])
 
 
 def run_info(command: str, args: argparse.Namespace, problem: Problem) -> dict:
@@ -224,6 +293,9 @@ def run(args: argparse.Namespace) -> int:
     if args.max_iter < 1:
         raise CliError(f"--max-iter {args.max_iter} must be at least 1")
     out, problem = prepare(args)
+    if not isinstance(problem, Problem):
+        from .per_joint import fit_joints
+        return fit_joints(args, out, problem)
     start = time.perf_counter()
     with FitProgress(args.max_iter) as progress:
         result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress)
@@ -238,7 +310,7 @@ def run(args: argparse.Namespace) -> int:
     st = result.structure
     print(f"fitted {', '.join(st.effects) or 'the minimal model'} to {problem.source} "
           f"({result.iterations} iterations, {result.rollouts:.0f} full-length rollouts, {seconds:.1f} s)")
-    print(parameter_table(st.values, result.intervals, result.warnings))
+    print(parameter_table(st.values, result.intervals, result.warnings, st.describe()["units"]))
     print("held-out NRMSE per signal:")
     print("\n".join(nrmse_lines(result.nrmse_test)))
     print(f"wrote {out.path}/ (fit.json, index.html, traces.rrd, PNGs)")

@@ -41,9 +41,11 @@ def pack(params: JointParams, motor_qpos: int, motor_dof: int, link_qpos: int, l
         b[FKIND] = FRICTION_STATIC
         b[[FC, FS, VS, SHAPE, SIGMA, ASYM, VEPS]] = f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps
     t = params.transmission
-    b[[GEAR, K1, K2, K3, DAMP, BACKLASH]] = t.gear_ratio, t.k1, t.k2, t.k3, t.damping, t.backlash
+    b[GEAR] = params.gear_ratio  # a direct drive: N = 1 and no stiffness, so T = 0
     b[MU] = 1.0
-    if t.hysteresis is not None:
+    if t is not None:
+        b[[K1, K2, K3, DAMP, BACKLASH]] = t.k1, t.k2, t.k3, t.damping, t.backlash
+    if t is not None and t.hysteresis is not None:
         h = t.hysteresis
         b[[HYST, MU, BW_A, BW_BETA, BW_GAMMA, BW_N]] = 1.0, h.mu, h.a, h.beta, h.gamma, h.n
     if params.load_friction is not None:

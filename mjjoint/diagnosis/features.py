@@ -69,7 +69,7 @@ def reversal_proximity(t: np.ndarray, qd: np.ndarray, min_swing: float | None = 
 def operating_conditions(
     t: np.ndarray,
     q: np.ndarray,
-    theta: np.ndarray,
+    theta: np.ndarray | None,
     u: np.ndarray,
     gear_ratio: float,
     tau: np.ndarray | None = None,
@@ -77,43 +77,41 @@ def operating_conditions(
     """Per-sample operating conditions from measured motor angle q, link angle theta [rad],
     motor torque u and optionally transmission torque tau.
 
-    Keys: qd, thetad [rad/s]; qdd, accel (motor and link acceleration) [rad/s^2];
-    delta = q/N - theta, abs_delta [rad]; delta_d [rad/s]; sin_theta, cos_theta;
-    q_mod = q mod 2pi [rad] (for position-periodic effects); reversal_proximity [s];
-    u, and tau when given, passed through.
+    Keys: qd [rad/s]; qdd [rad/s^2]; q_mod = q mod 2pi [rad] (for position-periodic effects);
+    reversal_proximity [s]; u, and tau when given, passed through. With theta (None for a
+    direct drive, which has no output side) also: thetad [rad/s]; accel (link acceleration);
+    delta = q/N - theta, abs_delta [rad]; delta_d [rad/s]; sin_theta, cos_theta.
     """
     dt = sample_period(t)
-    signals = {"q": q, "theta": theta, "u": u} | ({} if tau is None else {"tau": tau})
+    signals = {"q": q, "u": u} | ({} if theta is None else {"theta": theta}) | ({} if tau is None else {"tau": tau})
     arrays = {k: np.asarray(v, dtype=float) for k, v in signals.items()}
     for name, a in arrays.items():
         if a.shape != np.shape(t):
             raise ValueError(f"{name} has shape {a.shape}, expected {np.shape(t)} like t")
     if not gear_ratio > 0:
         raise ValueError(f"gear_ratio={gear_ratio!r} must be positive")
-    q, theta = arrays["q"], arrays["theta"]
+    q = arrays["q"]
     width = _savgol_window(dt, q.size)
 
     def smooth(x: np.ndarray, deriv: int = 0) -> np.ndarray:
         return savgol_filter(x, width, SAVGOL_POLYORDER, deriv=deriv, delta=dt)
 
-    qd, thetad = smooth(q, 1), smooth(theta, 1)
-    # Smoothed too, so that "small |delta|" is not decided by quantization steps around zero.
-    delta = smooth(q / gear_ratio - theta)
+    qd = smooth(q, 1)
     out = {
         "qd": qd,
-        "thetad": thetad,
         # Differentiating the smoothed velocity again smooths twice, which acceleration needs.
         "qdd": smooth(qd, 1),
-        "accel": smooth(thetad, 1),
-        "delta": delta,
-        "abs_delta": np.abs(delta),
-        "delta_d": qd / gear_ratio - thetad,
-        "sin_theta": np.sin(theta),
-        "cos_theta": np.cos(theta),
         "q_mod": np.mod(q, 2.0 * np.pi),
         "reversal_proximity": reversal_proximity(t, qd),
         "u": arrays["u"],
     }
+    if theta is not None:
+        theta = arrays["theta"]
+        thetad = smooth(theta, 1)
+        # Smoothed too, so that "small |delta|" is not decided by quantization steps around zero.
+        delta = smooth(q / gear_ratio - theta)
+        out |= {"thetad": thetad, "accel": smooth(thetad, 1), "delta": delta, "abs_delta": np.abs(delta),
+                "delta_d": qd / gear_ratio - thetad, "sin_theta": np.sin(theta), "cos_theta": np.cos(theta)}
     if tau is not None:
         out["tau"] = arrays["tau"]
     return out

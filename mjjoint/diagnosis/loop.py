@@ -30,7 +30,7 @@ from typing import Callable
 import numpy as np
 from scipy.stats import wilcoxon
 
-from ..identify.effects import EFFECTS
+from ..identify.effects import EFFECTS, base_params, plant_effects
 from ..identify.fit import FitResult, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
@@ -54,6 +54,7 @@ EVIDENCE: dict[str, tuple[str, ...]] = {
     "torque_ripple": ("periodic_q",),
     "link_flexibility": ("resonance",),
     "input_delay": ("lag",),
+    "input_offset": ("coulomb",),  # a constant force reads as one sign of friction half the time
 }
 
 
@@ -81,11 +82,13 @@ class Step:
     fit_after: dict[str, float]
     gain: float
     screened: dict[str, float]
+    alternatives: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict:
         return {"effect": self.effect, "evidence": self.evidence, "where": self.where,
                 "parameters": self.parameters, "fit_before": self.fit_before, "fit_after": self.fit_after,
-                "heldout_gain": self.gain, "screened": self.screened}
+                "heldout_gain": self.gain, "screened": self.screened,
+                "indistinguishable_from": self.alternatives}
 
 
 @dataclass
@@ -167,21 +170,27 @@ def _candidate_variants(effect: str, where: dict) -> list[tuple[dict, dict]]:
     return [({}, {})]
 
 
-def screened_params(effect: str) -> list[str]:
-    """A candidate's own parameters plus those of the effects it refines.
+def screened_params(effect: str, structure: Structure) -> list[str]:
+    """The parameters freed when screening ``effect`` on ``structure``.
 
-    Adding e.g. hysteresis to a gear changes what the fitted k1 should be (the base fit's k1
-    is the secant stiffness of the hysteretic truth), so the prerequisite's parameters are
-    freed with the candidate's.
+    The candidate's own; those of the effects it refines (adding hysteresis to a gear changes
+    what k1 should be: the base fit's k1 is the secant stiffness of the hysteretic truth); those
+    of the effects already in the model that act where it acts (a model without Coulomb
+    friction fits a viscous coefficient that stands in for it: EMPS, 424 instead of ~200
+    N s/m); and the inertias, which stand in for everything (EMPS without friction: 418 kg for
+    a 95 kg axis). A candidate held against such stand-ins cannot show what it explains.
     """
-    names = [p.name for p in EFFECTS[effect].params]
-    for req in EFFECTS[effect].requires:
-        names += [p.name for p in EFFECTS[req].params]
+    site = EFFECTS[effect].site
+    related = [e for e in structure.effects if EFFECTS[e].site == site] + list(EFFECTS[effect].requires)
+    names = [p.name for p in base_params(structure.nominal)]
+    for e in dict.fromkeys([*related, effect]):
+        names += [p.name for p in EFFECTS[e].params]
     return names
 
 
 def candidates_for(structure: Structure, allowed=None) -> list[str]:
-    names = allowed if allowed is not None else tuple(EFFECTS)
+    possible = plant_effects(structure.nominal)
+    names = possible if allowed is None else [e for e in allowed if e in possible]
     return [e for e in names if e not in structure.effects
             and all(r in structure.effects for r in EFFECTS[e].requires)]
 
@@ -206,14 +215,14 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         for name in candidates_for(current.structure, options.candidates):
             for values, settings in _candidate_variants(name, where):
                 trial = current.structure.with_effect(name, values, settings)
-                res = fit(predictor, trial, screened_params(name), max_iter=options.screen_iter)
+                res = fit(predictor, trial, screened_params(name, current.structure), max_iter=options.screen_iter)
                 if name not in screened or res.cost_test < screened[name][0]:
                     screened[name] = (res.cost_test, res)
                 label = f"{name} {settings}" if settings else name
                 say(f"  screened {label}: held-out cost {current.cost_test:.4g} -> {res.cost_test:.4g}")
         if not screened:
             break
-        best = min(screened, key=lambda k: screened[k][0])
+        best, alternatives = _choose(screened, current.cost_test)
         cand = screened[best][1]
         gain = 1.0 - cand.cost_test / current.cost_test
         n = _n_residuals(predictor)
@@ -234,18 +243,42 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             parameters={p.name: refit.structure.values[p.name] for p in EFFECTS[best].params},
             fit_before=current.nrmse_test, fit_after=refit.nrmse_test,
             gain=1.0 - refit.cost_test / current.cost_test,
-            screened={k: v[0] for k, v in screened.items()}))
+            screened={k: v[0] for k, v in screened.items()}, alternatives=alternatives))
         current = refit
         history.append(current)
     final_where = residual_location(predictor, current.structure)
     if steps:
-        verdict = (f"missing physics found: {', '.join(s.effect for s in steps)}; held-out cost "
+        found = {s.effect for s in steps}
+
+        def rivals(step: Step) -> str:  # rivals found later are no longer alternatives
+            alt = [a for a in step.alternatives if a not in found]
+            return f" (or, indistinguishable here, {' / '.join(alt)})" if alt else ""
+        named = [s.effect + rivals(s) for s in steps]
+        verdict = (f"missing physics found: {', '.join(named)}; held-out cost "
                    f"{initial.cost_test:.4g} -> {current.cost_test:.4g}")
     else:
         verdict = ("nothing significant is missing: no candidate effect lowers the held-out "
                    f"prediction cost by {100 * options.min_gain:.0f} % or more")
     return Diagnosis(steps, initial, current, final_where, verdict,
                      predictor.rollouts - roll0, time.perf_counter() - t_start, history)
+
+
+TIE_SHARE = 0.9  # a candidate explaining >= 90 % of the best one's held-out gain is a rival
+
+
+def _choose(screened: dict[str, tuple[float, FitResult]], cost_now: float) -> tuple[str, list[str]]:
+    """The effect to name, and the rivals the held-out data cannot tell apart from it.
+
+    Rivals explain nearly the same held-out cost (e.g. on a drive that seldom rests, friction
+    asymmetry and a constant input offset are one and the same force). Among them the most
+    parsimonious is named: fewest parameters, then fewest prerequisite effects (a term that
+    explains the residual on its own), then the lowest cost.
+    """
+    best = min(screened, key=lambda k: screened[k][0])
+    gain = cost_now - screened[best][0]
+    rivals = [k for k in screened if gain > 0 and cost_now - screened[k][0] >= TIE_SHARE * gain]
+    chosen = min(rivals or [best], key=lambda k: (len(EFFECTS[k].params), len(EFFECTS[k].requires), screened[k][0]))
+    return chosen, sorted(k for k in rivals if k != chosen)
 
 
 def _paired_p(predictor: Predictor, before: Structure, after: Structure) -> float:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from ..assets import ArmSpec
+from ..assets.drive import DriveSpec, drive_joint
 from ..joint import JointParams
 from ..physics.boucwen import BoucWen
 from ..physics.load import LoadFriction
@@ -33,6 +34,7 @@ class Param:
     hi: float
     log: bool = True
     unit: str = ""
+    dim: str = ""        # physical dimension, for plants of other scales (see DIMENSIONS)
 
     def to_unit(self, value: float) -> float:
         """Map a physical value to the optimiser's coordinate."""
@@ -41,8 +43,29 @@ class Param:
     def from_unit(self, x: float) -> float:
         return math.exp(min(x, 700.0)) if self.log else x  # an infinite interval stays finite
 
+    def for_plant(self, plant) -> "Param":
+        """This parameter for a plant of other force/speed/position orders and units."""
+        s = plant.scales
+        f = DIMENSIONS[self.dim](s["force"], s["speed"], s["position"])
+        unit = plant.unit(self.unit)
+        if f == 1.0 and unit == self.unit:
+            return self
+        return dataclasses.replace(self, initial=self.initial * f, lo=self.lo * f, hi=self.hi * f, unit=unit)
 
-Model = tuple[ArmSpec, JointParams]
+
+# Factor of each dimension for force F, speed V and position X orders (all 1 on the arm).
+DIMENSIONS: dict[str, Callable[[float, float, float], float]] = {
+    "": lambda f, v, x: 1.0,
+    "force": lambda f, v, x: f,
+    "force/speed": lambda f, v, x: f / v,
+    "force/position": lambda f, v, x: f / x,
+    "speed": lambda f, v, x: v,
+    "1/position": lambda f, v, x: 1.0 / x,
+    "inertia": lambda f, v, x: f * x / (v * v),   # F = J a, a ~ V^2 / X
+}
+
+Plant = ArmSpec | DriveSpec
+Model = tuple[Plant, JointParams]
 
 
 @dataclass(frozen=True)
@@ -53,15 +76,20 @@ class Effect:
     apply: Callable[[Model, dict[str, float]], Model]
     requires: tuple[str, ...] = ()
     excludes: tuple[str, ...] = ()
+    site: str = "motor"    # where it acts: "motor" (torque on the rotor), "gear" or "link"
 
 
-def _friction(j: JointParams) -> StaticFriction | TwoSEP:
-    return j.friction if j.friction is not None else StaticFriction(fc=0.0, fs=0.0, sigma=0.0)
+def _friction(model: Model) -> StaticFriction | TwoSEP:
+    """The model's motor friction, or none yet: zero levels, the plant's sign regularisation."""
+    if model[1].friction is not None:
+        return model[1].friction
+    v_eps = model[0].v_eps if isinstance(model[0], DriveSpec) else StaticFriction.v_eps
+    return StaticFriction(fc=0.0, fs=0.0, sigma=0.0, v_eps=v_eps)
 
 
 def _set_friction(model: Model, **changes) -> Model:
     arm, j = model
-    f = _friction(j)
+    f = _friction(model)
     if "fc" in changes and "fs" not in changes and f.fs <= f.fc:
         changes["fs"] = changes["fc"]  # Coulomb alone: break-away equals sliding level
     fields = {k: v for k, v in changes.items() if k in {x.name for x in dataclasses.fields(f)}}
@@ -75,19 +103,19 @@ def _set_transmission(model: Model, **changes) -> Model:
 
 def _dynamic(model: Model, v: dict[str, float]) -> Model:
     arm, j = model
-    f = _friction(j)
+    f = _friction(model)
     twosep = TwoSEP(fc=max(f.fc, 1e-6), fs=max(f.fs, f.fc, 1e-6), vs=f.vs, shape=f.shape,
                     sigma=f.sigma, asym=f.asym, k=v["dynamic_friction.k"], b=v["dynamic_friction.b"])
     return arm, dataclasses.replace(j, friction=twosep)
 
 
 def _stribeck(model: Model, v: dict[str, float]) -> Model:
-    fc = _friction(model[1]).fc
+    fc = _friction(model).fc
     return _set_friction(model, fs=fc * v["stribeck_friction.ratio"], vs=v["stribeck_friction.vs"])
 
 
 def _asym(model: Model, v: dict[str, float]) -> Model:
-    return _set_friction(model, asym=_friction(model[1]).fc * v["friction_asymmetry.ratio"])
+    return _set_friction(model, asym=_friction(model).fc * v["friction_asymmetry.ratio"])
 
 
 def _hysteresis(model: Model, v: dict[str, float]) -> Model:
@@ -113,18 +141,18 @@ def _load(model: Model, v: dict[str, float]) -> Model:
 
 EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("coulomb_friction", "constant motor friction opposing motion, Fc sgn(w)",
-           (Param("coulomb_friction.fc", 0.05, 1e-4, 5.0, unit="N m"),),
+           (Param("coulomb_friction.fc", 0.05, 1e-4, 5.0, unit="N m", dim="force"),),
            lambda m, v: _set_friction(m, fc=v["coulomb_friction.fc"])),
     Effect("viscous_friction", "motor friction proportional to speed, sigma w",
-           (Param("viscous_friction.sigma", 1e-4, 1e-7, 1e-1, unit="N m s/rad"),),
+           (Param("viscous_friction.sigma", 1e-4, 1e-7, 1e-1, unit="N m s/rad", dim="force/speed"),),
            lambda m, v: _set_friction(m, sigma=v["viscous_friction.sigma"])),
     Effect("stribeck_friction", "break-away above the Coulomb level at low speed (Eq. 15)",
            (Param("stribeck_friction.ratio", 1.5, 1.0, 5.0, log=False),
-            Param("stribeck_friction.vs", 0.5, 1e-3, 100.0, unit="rad/s")),
+            Param("stribeck_friction.vs", 0.5, 1e-3, 100.0, unit="rad/s", dim="speed")),
            _stribeck, requires=("coulomb_friction",)),
     Effect("dynamic_friction", "2SEP pre-sliding hysteresis and frictional lag (Eqs. 11-14)",
-           (Param("dynamic_friction.k", 1000.0, 10.0, 1e5, unit="1/rad"),
-            Param("dynamic_friction.b", 50.0, 0.1, 1e4, unit="N m/rad")),
+           (Param("dynamic_friction.k", 1000.0, 10.0, 1e5, unit="1/rad", dim="1/position"),
+            Param("dynamic_friction.b", 50.0, 0.1, 1e4, unit="N m/rad", dim="force/position")),
            _dynamic, requires=("coulomb_friction",)),
     Effect("friction_asymmetry", "direction-dependent friction level",
            (Param("friction_asymmetry.ratio", 0.0, -0.9, 0.9, log=False),),
@@ -132,46 +160,65 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("load_friction", "output bearing friction Fc sgn(theta') + d_f theta'",
            (Param("load_friction.fc", 0.1, 1e-4, 50.0, unit="N m"),
             Param("load_friction.viscous", 0.01, 1e-5, 10.0, unit="N m s/rad")),
-           _load),
+           _load, site="link"),
     Effect("gravity", "gravity torque of the link, l g sin(theta) (Eq. 9)",
            (Param("gravity.g", 9.81, 0.1, 50.0, unit="m/s^2"),),
-           lambda m, v: _arm(m, gravity=v["gravity.g"])),
+           lambda m, v: _arm(m, gravity=v["gravity.g"]), site="link"),
     Effect("linear_stiffness", "elastic gear: torsional spring K delta (Eq. 3)",
            (Param("linear_stiffness.k1", 1e4, 1e2, 1e7, unit="N m/rad"),),
-           lambda m, v: _set_transmission(m, k1=v["linear_stiffness.k1"], damping=0.0)),
+           lambda m, v: _set_transmission(m, k1=v["linear_stiffness.k1"], damping=0.0), site="gear"),
     Effect("nonlinear_stiffness", "hardening gear stiffness, k3 delta^3 (Eq. 16)",
            (Param("nonlinear_stiffness.k3", 1e8, 1e4, 1e13, unit="N m/rad^3"),),
            lambda m, v: _set_transmission(m, k3=v["nonlinear_stiffness.k3"]),
-           requires=("linear_stiffness",)),
+           requires=("linear_stiffness",), site="gear"),
     Effect("transmission_hysteresis", "Bouc-Wen hysteretic (elasto-plastic) gear stiffness (Eqs. 16-17)",
            (Param("transmission_hysteresis.mu", 0.6, 0.02, 0.98, log=False),
             Param("transmission_hysteresis.x_u", 2e-3, 1e-6, 0.1, unit="rad")),
-           _hysteresis, requires=("linear_stiffness",)),
+           _hysteresis, requires=("linear_stiffness",), site="gear"),
     Effect("transmission_damping", "viscous damping in the gear, D delta' (Eq. 18)",
            (Param("transmission_damping.d", 1.0, 1e-3, 1e3, unit="N m s/rad"),),
            lambda m, v: _set_transmission(m, damping=v["transmission_damping.d"]),
-           requires=("linear_stiffness",)),
+           requires=("linear_stiffness",), site="gear"),
     Effect("backlash", "play in the gear: dead zone of the deflection (Fig. 3 (a))",
            (Param("backlash.width", 1e-4, 1e-7, 1e-2, unit="rad"),),
            lambda m, v: _set_transmission(m, backlash=v["backlash.width"]),
-           requires=("linear_stiffness",)),
+           requires=("linear_stiffness",), site="gear"),
     Effect("torque_ripple", "position-periodic motor torque (cogging / eccentricity)",
-           (Param("torque_ripple.a", 0.0, -2.0, 2.0, log=False, unit="N m"),
-            Param("torque_ripple.b", 0.0, -2.0, 2.0, log=False, unit="N m")),
+           (Param("torque_ripple.a", 0.0, -2.0, 2.0, log=False, unit="N m", dim="force"),
+            Param("torque_ripple.b", 0.0, -2.0, 2.0, log=False, unit="N m", dim="force")),
            _ripple),
     Effect("link_flexibility", "bending of the link rod (distributed mass-spring, Fig. 5 (b))",
            (Param("link_flexibility.ei", 500.0, 1.0, 1e6, unit="N m^2"),),
-           lambda m, v: _arm(m, segments=4, rod_ei=v["link_flexibility.ei"])),
+           lambda m, v: _arm(m, segments=4, rod_ei=v["link_flexibility.ei"]), site="link"),
     Effect("input_delay", "dead time between commanded and applied motor torque",
            (Param("input_delay.delay", 1e-3, 0.0, 0.01, log=False, unit="s"),),
            lambda m, v: _arm(m, input_delay=v["input_delay.delay"])),
+    Effect("input_offset", "constant bias of the applied motor torque (amplifier or sensor offset)",
+           (Param("input_offset.offset", 0.0, -1.0, 1.0, log=False, unit="N m", dim="force"),),
+           lambda m, v: _arm(m, input_offset=v["input_offset.offset"])),
 )}
 
-# Parameters of the minimal structure: inertias (the gear ratio is given, not fitted).
+# The effects a direct drive can have: no gear, no output side, no gravity on a level axis.
+# Torque ripple is left out because its harmonics are per motor revolution, which a linear
+# axis measured in metres does not define.
+DRIVE_EFFECTS = ("coulomb_friction", "viscous_friction", "stribeck_friction", "dynamic_friction",
+                 "friction_asymmetry", "input_delay", "input_offset")
+
+# Parameters of the minimal structure: inertias (the gear ratio is given, not fitted); a direct
+# drive has only the one, the motor joint's (kg on a slide).
 BASE_PARAMS = (
-    Param("inertia.motor", 5e-5, 1e-7, 1e-1, unit="kg m^2"),
+    Param("inertia.motor", 5e-5, 1e-7, 1e-1, unit="kg m^2", dim="inertia"),
     Param("inertia.link", 2e-3, 1e-5, 1e2, unit="kg m^2"),
 )
+
+
+def base_params(nominal: Plant) -> tuple[Param, ...]:
+    return BASE_PARAMS[:1] if isinstance(nominal, DriveSpec) else BASE_PARAMS
+
+
+def plant_effects(nominal: Plant) -> tuple[str, ...]:
+    """Every effect the plant can have."""
+    return DRIVE_EFFECTS if isinstance(nominal, DriveSpec) else tuple(EFFECTS)
 
 SEED_EFFECTS = ("coulomb_friction", "viscous_friction", "stribeck_friction", "dynamic_friction",
                 "load_friction", "gravity", "linear_stiffness", "nonlinear_stiffness",
@@ -192,20 +239,26 @@ def rigid_gear(arm: ArmSpec, gear_ratio: float) -> Transmission:
                         hysteresis=None)
 
 
-def minimal_model(nominal: ArmSpec, gear_ratio: float) -> Model:
-    """Rigid gear, two inertias, nothing else: the start of ``--base minimal``."""
-    arm = dataclasses.replace(nominal, segments=0, gravity=0.0, input_delay=0.0)
+def minimal_model(nominal: Plant, gear_ratio: float) -> Model:
+    """Rigid gear, two inertias, nothing else: the start of ``--base minimal``.
+
+    A direct drive's minimal model is its one inertia under the input, nothing else.
+    """
+    if isinstance(nominal, DriveSpec):
+        drive = dataclasses.replace(nominal, input_delay=0.0, input_offset=0.0)
+        return drive, drive_joint(JointParams(friction=None, ripple=None))
+    arm = dataclasses.replace(nominal, segments=0, gravity=0.0, input_delay=0.0, input_offset=0.0)
     joint = JointParams(friction=None, load_friction=None, ripple=None,
                         transmission=rigid_gear(arm, gear_ratio))
     return arm, joint
 
 
-def check_effects(names) -> tuple[str, ...]:
+def check_effects(names, known: tuple[str, ...] = tuple(EFFECTS)) -> tuple[str, ...]:
     """Validate and order effect names (requirements first); unknown names fail in one line."""
     names = list(dict.fromkeys(names))
-    unknown = [n for n in names if n not in EFFECTS]
+    unknown = [n for n in names if n not in known]
     if unknown:
-        raise ValueError(f"unknown effect {unknown[0]!r} (known: {', '.join(EFFECTS)})")
+        raise ValueError(f"unknown effect {unknown[0]!r} (known: {', '.join(known)})")
     for n in names:
         missing = [r for r in EFFECTS[n].requires if r not in names]
         if missing:

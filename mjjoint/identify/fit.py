@@ -79,7 +79,9 @@ def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int
     start = time.perf_counter()
     roll0 = predictor.rollouts
     windows = predictor.train if windows is None else windows
-    names = [p.name for p in structure.params] if names is None else list(names)
+    # The structure's own order: vector() and from_vector() use it, so the labels must too.
+    wanted = None if names is None else set(names)
+    names = [p.name for p in structure.params if wanted is None or p.name in wanted]
     x0 = structure.vector(names)
     lo, hi = structure.bounds(names)
     x0 = np.clip(x0, lo, hi)

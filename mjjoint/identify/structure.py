@@ -7,8 +7,9 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from ..assets import ArmSpec, build_arm, load_model
-from .effects import BASE_PARAMS, EFFECTS, Model, Param, check_effects, minimal_model
+from ..assets import load_model
+from ..assets.plant import build_plant
+from .effects import EFFECTS, Model, Param, Plant, base_params, check_effects, minimal_model, plant_effects
 
 
 @dataclass(frozen=True)
@@ -21,28 +22,30 @@ class Structure:
 
     effects: tuple[str, ...]
     values: dict[str, float]
-    nominal: ArmSpec
+    nominal: Plant
     gear_ratio: float
     settings: dict[str, float] = field(default_factory=dict)
 
     @classmethod
-    def create(cls, effects, nominal: ArmSpec, gear_ratio: float, values=None, settings=None) -> "Structure":
-        effects = check_effects(effects)
-        vals = {p.name: p.initial for p in _params(effects)}
+    def create(cls, effects, nominal: Plant, gear_ratio: float, values=None, settings=None) -> "Structure":
+        effects = check_effects(effects, plant_effects(nominal))
+        vals = {p.name: p.initial for p in _params(effects, nominal)}
         vals["inertia.motor"] = nominal.motor_inertia
-        vals["inertia.link"] = nominal.hub_inertia
+        if "inertia.link" in vals:
+            vals["inertia.link"] = nominal.hub_inertia
         vals.update(values or {})
         return cls(effects, vals, nominal, float(gear_ratio), dict(settings or {}))
 
     @property
     def params(self) -> tuple[Param, ...]:
-        return _params(self.effects)
+        return _params(self.effects, self.nominal)
 
     def with_effect(self, name: str, values=None, settings=None) -> "Structure":
         vals = dict(self.values)
-        vals.update({p.name: p.initial for p in EFFECTS[name].params if p.name not in vals})
+        effects = check_effects(self.effects + (name,), plant_effects(self.nominal))
+        vals.update({p.name: p.initial for p in _params(effects, self.nominal) if p.name not in vals})
         vals.update(values or {})
-        return dataclasses.replace(self, effects=check_effects(self.effects + (name,)), values=vals,
+        return dataclasses.replace(self, effects=effects, values=vals,
                                    settings={**self.settings, **(settings or {})})
 
     def with_values(self, values: dict[str, float]) -> "Structure":
@@ -70,24 +73,26 @@ class Structure:
     # ---- simulator ---------------------------------------------------------------------
     def model_params(self) -> Model:
         """The (ArmSpec, JointParams) this structure describes."""
-        model = minimal_model(self.nominal, self.gear_ratio)
-        model = (dataclasses.replace(model[0], motor_inertia=self.values["inertia.motor"],
-                                     hub_inertia=self.values["inertia.link"]), model[1])
+        plant, joint = minimal_model(self.nominal, self.gear_ratio)
+        inertias = {"mass": self.values["inertia.motor"]} if "inertia.link" not in self.values else {
+            "motor_inertia": self.values["inertia.motor"], "hub_inertia": self.values["inertia.link"]}
+        model = (dataclasses.replace(plant, **inertias), joint)
         v = {**self.values, **self.settings}
         for name in self.effects:
             model = EFFECTS[name].apply(model, v)
         return model
 
     def compile(self) -> mujoco.MjModel:
-        arm, joint = self.model_params()
-        return load_model(build_arm(arm, joint, scene=False))
+        return load_model(build_plant(*self.model_params()))
 
     def describe(self) -> dict:
         return {"effects": list(self.effects),
                 "parameters": {k: float(v) for k, v in self.values.items()},
-                "settings": {k: float(v) for k, v in self.settings.items()}}
+                "settings": {k: float(v) for k, v in self.settings.items()},
+                "units": {p.name: p.unit for p in self.params}}
 
 
-def _params(effects) -> tuple[Param, ...]:
-    return BASE_PARAMS + tuple(p for e in effects for p in EFFECTS[e].params)
+def _params(effects, nominal: Plant) -> tuple[Param, ...]:
+    params = base_params(nominal) + tuple(p for e in effects for p in EFFECTS[e].params)
+    return tuple(p.for_plant(nominal) for p in params)
 

@@ -42,6 +42,14 @@ SIGNALS = ("q", "delta", "tau")
 # quantised closed-loop recordings (scripts/concealed_benchmark.py cases).
 VELOCITY_WINDOW = 0.007
 VELOCITY_ORDER = 3
+# Rollout output buffer per predict() call [bytes]. MuJoCo writes the full state of every
+# step (2 steps x (37 + 5) doubles = 672 B per sample and model for the shipped arm); holding
+# a whole batch grows with recording x models (3 GB for a 10-minute recording's 10-model
+# Jacobian), so the batch is rolled out in chunks of this size. 64 MiB holds ~400 windows of
+# 0.25 s, so a 4-model Jacobian of recordings up to ~30 s stays one call; chunking costs no
+# speed (716 window rollouts of a 60 s lab recording, 2 cores: 0.69 s in two chunks, 0.76 s
+# in one). Peak memory: scripts/bench_fit.py --memory.
+ROLLOUT_BUFFER = 64 * 2 ** 20
 
 
 @dataclass(frozen=True)
@@ -59,33 +67,40 @@ class WindowDesign:
 
 @dataclass
 class Measured:
-    """The recording on a uniform grid with what the windows need."""
+    """The recording on a uniform grid with what the windows need.
+
+    ``theta`` is None for a plant without an output side (a direct drive): only q is predicted.
+    """
 
     t: np.ndarray
     u: np.ndarray
     q: np.ndarray
-    theta: np.ndarray
+    theta: np.ndarray | None
     tau: np.ndarray | None
     qd: np.ndarray
-    thetad: np.ndarray
+    thetad: np.ndarray | None
     gear_ratio: float
     rate: float
 
     @property
-    def delta(self) -> np.ndarray:
-        return self.q / self.gear_ratio - self.theta
+    def delta(self) -> np.ndarray | None:
+        return None if self.theta is None else self.q / self.gear_ratio - self.theta
 
     @classmethod
-    def from_recording(cls, rec, gear_ratio: float) -> "Measured":
+    def from_recording(cls, rec, gear_ratio: float, output: bool = True) -> "Measured":
+        """Resample ``rec`` on its mean period; ``output=False`` ignores its theta (direct drive)."""
         t = np.asarray(rec.t, float)
-        dt = float(np.median(np.diff(t)))
-        grid = t[0] + dt * np.arange(int(round((t[-1] - t[0]) / dt)) + 1)
-        cols = {k: np.interp(grid, t, np.asarray(getattr(rec, k), float)) for k in ("u", "q", "theta")}
-        tau = getattr(rec, "tau", None)
-        tau = None if tau is None else np.interp(grid, t, np.asarray(tau, float))
+        # The mean period, not the median: stored time stamps carry rounding (EMPS: median
+        # 0.99998 ms for a 1 kHz record), which would put the grid off the simulator's step.
+        dt = float(t[-1] - t[0]) / (len(t) - 1)
+        grid = t[0] + dt * np.arange(len(t))
+        names = ("u", "q", "theta", "tau") if output else ("u", "q", "tau")
+        cols = {k: None if getattr(rec, k, None) is None else np.interp(grid, t, np.asarray(getattr(rec, k), float))
+                for k in names}
+        cols.setdefault("theta", None)
         win = max(5, int(round(VELOCITY_WINDOW / dt)) | 1)
-        deriv = lambda x: savgol_filter(x, win, VELOCITY_ORDER, deriv=1, delta=dt)  # noqa: E731
-        return cls(t=grid, tau=tau, qd=deriv(cols["q"]), thetad=deriv(cols["theta"]),
+        deriv = lambda x: None if x is None else savgol_filter(x, win, VELOCITY_ORDER, deriv=1, delta=dt)  # noqa: E731
+        return cls(t=grid, qd=deriv(cols["q"]), thetad=deriv(cols["theta"]),
                    gear_ratio=float(gear_ratio), rate=1.0 / dt, **cols)
 
 
@@ -123,8 +138,8 @@ class Predictor:
     def measured_windows(self) -> dict[str, np.ndarray | None]:
         idx = self.starts[:, None] + np.arange(self.nwin_samples)[None, :]
         m = self.m
-        return {"q": m.q[idx], "delta": m.delta[idx], "theta": m.theta[idx],
-                "tau": None if m.tau is None else m.tau[idx]}
+        pick = lambda x: None if x is None else x[idx]  # noqa: E731
+        return {"q": m.q[idx], "delta": pick(m.delta), "theta": pick(m.theta), "tau": pick(m.tau)}
 
     @property
     def signals(self) -> tuple[str, ...]:
@@ -155,30 +170,37 @@ class Predictor:
         ctrl = np.concatenate([self._controls(mod, windows, d) for mod, d in zip(models, delays)])
         batch_models = [mod for mod in models for _ in windows]
         datas = [mujoco.MjData(models[0]) for _ in range(max(1, self.nthread))]
-        with mujoco_log_silenced():
-            state, _ = mj_rollout.rollout(batch_models, datas, x0, ctrl, persistent_pool=True)
-        self.rollouts += len(structures) * len(windows) / len(self.starts)
         sub = self._substeps(models[0])
-        out = []
-        for k, mod in enumerate(models):
-            st = state[k * len(windows):(k + 1) * len(windows)]
-            picked = st[:, sub - 1::sub][:, : self.nwin_samples - 1]
-            full = np.concatenate([x0[k * len(windows):(k + 1) * len(windows), None], picked], axis=1)
-            out.append(self._signals(mod, full))
-        return out
+        nw, nrow, nstep, nx, nsens = len(windows), len(batch_models), ctrl.shape[1], x0.shape[1], models[0].nsensordata
+        chunk = max(len(datas), min(nrow, ROLLOUT_BUFFER // (8 * nstep * (nx + nsens))))
+        state, sens = np.empty((chunk, nstep, nx)), np.empty((chunk, nstep, nsens))
+        parts = [[] for _ in models]
+        for a in range(0, nrow, chunk):
+            b = min(a + chunk, nrow)
+            with mujoco_log_silenced():
+                mj_rollout.rollout(batch_models[a:b], datas, x0[a:b], ctrl[a:b], state=state[:b - a],
+                                   sensordata=sens[:b - a], persistent_pool=True)
+            for k in range(a // nw, (b - 1) // nw + 1):  # the models whose windows this chunk holds
+                lo, hi = max(a, k * nw), min(b, (k + 1) * nw)
+                picked = state[lo - a:hi - a, sub - 1::sub][:, : self.nwin_samples - 1]
+                parts[k].append(self._signals(models[k], np.concatenate([x0[lo:hi, None], picked], axis=1)))
+        self.rollouts += len(structures) * len(windows) / len(self.starts)
+        return [p[0] if len(p) == 1 else {s: np.concatenate([q[s] for q in p]) for s in p[0]} for p in parts]
 
     def _signals(self, model, full: np.ndarray) -> dict[str, np.ndarray]:
         ji = joint_indices(model)[0]
         nw, ns, nx = full.shape
         flat = full.reshape(nw * ns, nx)
         q = flat[:, 1 + ji.motor_qpos]
-        th = flat[:, 1 + ji.link_qpos]
         qd = flat[:, 1 + model.nq + ji.motor_dof]
-        thd = flat[:, 1 + model.nq + ji.link_dof]
+        grounded = ji.link_qpos < 0  # no output side: theta is the world's, 0
+        th = np.zeros_like(q) if grounded else flat[:, 1 + ji.link_qpos]
+        thd = np.zeros_like(q) if grounded else flat[:, 1 + model.nq + ji.link_dof]
         st = np.ascontiguousarray(flat[:, ji.state_start:ji.state_start + NSTATE])
         tau, _, _ = joint_traces(ji.block, st, q, qd, th, thd)
         shape = (nw, ns)
-        return {"q": q.reshape(shape), "theta": th.reshape(shape),
+        # Copies: views of q and theta would keep all of ``full`` (every state column) alive.
+        return {"q": q.reshape(shape).copy(), "theta": th.reshape(shape).copy(),
                 "delta": (q / ji.gear_ratio - th).reshape(shape), "tau": tau.reshape(shape)}
 
     def _substeps(self, model) -> int:
@@ -198,12 +220,13 @@ class Predictor:
         m = self.m
         x0[:, 0] = 0.0
         x0[:, 1 + ji.motor_qpos] = m.q[i0]
-        x0[:, 1 + ji.link_qpos] = m.theta[i0]
         x0[:, 1 + model.nq + ji.motor_dof] = m.qd[i0]
-        x0[:, 1 + model.nq + ji.link_dof] = m.thetad[i0]
+        if ji.link_qpos >= 0:
+            x0[:, 1 + ji.link_qpos] = m.theta[i0]
+            x0[:, 1 + model.nq + ji.link_dof] = m.thetad[i0]
         # Flexible segments of the link move with the hub at the window start.
-        x0[:, ji.state_start:ji.state_start + NSTATE] = _steady_internal_states(
-            ji.block, m.qd[i0], m.delta[i0])
+        delta = np.zeros(len(i0)) if m.delta is None else m.delta[i0]
+        x0[:, ji.state_start:ji.state_start + NSTATE] = _steady_internal_states(ji.block, m.qd[i0], delta)
         return x0
 
     def _controls(self, model, windows, delay: float) -> np.ndarray:
@@ -295,14 +318,14 @@ def _compile(arm, joint):
     """Compile (memoised on the exact parameters: FD columns repeat across iterations)."""
     from dataclasses import replace
 
-    from ..assets import build_arm
+    from ..assets.plant import build_plant
     key = (replace(arm, input_delay=0.0), joint)
     model = _MODEL_CACHE.get(key)
     if model is None:
         if len(_MODEL_CACHE) > 256:
             _MODEL_CACHE.clear()
             _STABLE.clear()
-        spec = build_arm(key[0], joint, scene=False)
+        spec = build_plant(key[0], joint)
         model = spec.compile()  # not load_model: unstable candidates are scored, not rejected
         register_model(model)
         _MODEL_CACHE[key] = model

@@ -51,7 +51,8 @@ def compare(predictor: Predictor, models: dict[str, Structure]) -> Comparison:
     return Comparison(
         t=m.t[idx], measured=measured,
         predicted={label: {s: p[s] for s in measured} for label, p in zip(models, preds)},
-        conditions={"q": m.q[idx], "theta": m.theta[idx], "qd": m.qd[idx], "thetad": m.thetad[idx]},
+        conditions={k: v[idx] for k, v in (("q", m.q), ("theta", m.theta), ("qd", m.qd), ("thetad", m.thetad))
+                    if v is not None},
         heldout=np.asarray(predictor.holdout, bool).copy(), cost=cost)
 
 

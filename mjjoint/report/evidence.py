@@ -4,7 +4,7 @@ Each effect's plot puts the before-model's residual next to the after-model's ag
 variable the physics depends on, so the pattern the effect removes is visible:
 - gear stiffness, hysteresis, damping, backlash: transmission torque against deflection
   (tau-delta loops; the measured loop under each model's);
-- motor friction terms: residual against motor velocity; load friction: against link velocity;
+- motor friction terms and an input offset: residual against motor velocity; load friction: against link velocity;
 - gravity: residual against sin(theta); torque ripple: against q mod 2 pi;
 - input delay: cross-correlation of measured and predicted signal over the shift;
 - link flexibility: residual spectrum.
@@ -23,8 +23,9 @@ from .compare import UNITS, Comparison
 from .plots import MEASURED, axis_label, flat, save, style
 
 LOOPS = ("linear_stiffness", "nonlinear_stiffness", "transmission_hysteresis", "transmission_damping", "backlash")
+# Motor friction terms, and a constant input offset, which acts like friction that never reverses.
 MOTOR_FRICTION = ("coulomb_friction", "viscous_friction", "stribeck_friction", "dynamic_friction",
-                  "friction_asymmetry")
+                  "friction_asymmetry", "input_offset")
 MAX_POINTS = 20_000   # scatter points per model: enough to see a shape, few enough for a small PNG
 BINS = 30
 RIPPLE_BINS_PER_CYCLE = 8

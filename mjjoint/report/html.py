@@ -48,9 +48,9 @@ def nrmse_table(columns: dict[str, dict[str, float]]) -> str:
     return f"<table><tr><th>signal</th>{heads}</tr>{''.join(rows)}</table>"
 
 
-def parameter_table(parameters: dict[str, float], intervals: dict, warnings) -> str:
+def parameter_table(parameters: dict[str, float], intervals: dict, warnings, units=None) -> str:
     rows = []
-    for name, value, interval, unit, flag in parameter_rows(parameters, intervals, warnings):
+    for name, value, interval, unit, flag in parameter_rows(parameters, intervals, warnings, units):
         rows.append(f'<tr{" class=flag" if flag else ""}><td><code>{escape(name)}</code></td>'
                     f'<td class="num">{escape(value)}</td><td class="num">{escape(interval)}</td>'
                     f"<td>{escape(unit)}</td></tr>")
@@ -74,7 +74,7 @@ def _step(k: int, step: dict, final: dict, image: str | None) -> list[str]:
     before, after = step["fit_before"], step["fit_after"]
     screened = ", ".join(f"{escape(n)} {c:.4g}" for n, c in sorted(step["screened"].items(), key=lambda kv: kv[1]))
     params = step_values(step, final)
-    ptable = parameter_table(params, final["intervals_95"], final["warnings"])
+    ptable = parameter_table(params, final["intervals_95"], final["warnings"], final.get("units"))
     out = [f"<h2>Step {k}: <code>{escape(e)}</code></h2>",
            f"<p>{escape(EFFECTS[e].physics)}. Held-out cost {-100 * step['heldout_gain']:+.1f} %.</p>",
            "<table>",
@@ -109,7 +109,7 @@ def diagnosis_page(diag: dict, images: dict, source: str, run: dict) -> str:
     body += ["<h2>Final model</h2>",
              "<p>Effects: " + (", ".join(f"<code>{escape(e)}</code>" for e in final["effects"]) or "minimal") + "</p>",
              parameter_table({**final["parameters"], **final.get("settings", {})}, final["intervals_95"],
-                             final["warnings"]),
+                             final["warnings"], final.get("units")),
              _files(run)]
     return _page(f"mjjoint diagnose: {source}", body)
 
@@ -120,7 +120,7 @@ def fit_page(fit: dict, images: dict, source: str, run: dict) -> str:
     body = [f"<h1>mjjoint fit: {escape(source)}</h1>",
             "<p>Effects: " + (", ".join(f"<code>{escape(e)}</code>" for e in st["effects"]) or "minimal") + "</p>",
             "<h2>Parameters</h2>",
-            parameter_table(st["parameters"], fit["intervals_95"], fit["warnings"]),
+            parameter_table(st["parameters"], fit["intervals_95"], fit["warnings"], st.get("units")),
             "<h2>Prediction error (NRMSE)</h2>",
             nrmse_table({"training windows": fit["nrmse_train"], "held-out windows": fit["nrmse_test"]}),
             _img(images["windows"], "measured vs fitted on held-out windows"),

@@ -15,20 +15,24 @@ def flagged(name: str, warnings) -> bool:
     return any(w.startswith(f"{name} ") for w in warnings)
 
 
-def parameter_rows(parameters: dict[str, float], intervals: dict, warnings) -> list[tuple[str, str, str, str, bool]]:
-    """(name, value, 95 % interval, unit, flagged) per parameter, formatted for people."""
-    meta = params_by_name()
+def parameter_rows(parameters: dict[str, float], intervals: dict, warnings,
+                   units: dict[str, str] | None = None) -> list[tuple[str, str, str, str, bool]]:
+    """(name, value, 95 % interval, unit, flagged) per parameter, formatted for people.
+
+    ``units``: the structure's own (a linear drive's are N and m); default the catalogue's.
+    """
+    meta = {k: p.unit for k, p in params_by_name().items()} | (units or {})
     rows = []
     for name, value in parameters.items():
         iv = intervals.get(name)
         interval = "-" if iv is None else f"[{iv[0]:.3g}, {iv[1]:.3g}]"
-        unit = meta[name].unit if name in meta else ""
+        unit = meta.get(name, "")
         rows.append((name, f"{value:.4g}", interval, unit, flagged(name, warnings)))
     return rows
 
 
-def parameter_table(parameters: dict[str, float], intervals: dict, warnings) -> str:
-    rows = parameter_rows(parameters, intervals, warnings)
+def parameter_table(parameters: dict[str, float], intervals: dict, warnings, units=None) -> str:
+    rows = parameter_rows(parameters, intervals, warnings, units)
     width = max([len("parameter")] + [len(r[0]) for r in rows])
     lines = [f"  {'parameter':{width}s}  {'value':>11s}  {'95 % interval':26s}  unit"]
     for name, value, interval, unit, flag in rows:
@@ -80,7 +84,7 @@ def diagnosis_summary(diag: dict, seconds: float) -> str:
             lines.append(f"  {k}. {e} - {EFFECTS[e].physics}; held-out cost "
                          f"{-100 * st['heldout_gain']:+.1f} %")
             for name, value, interval, unit, flag in parameter_rows(
-                    step_values(st, final), final["intervals_95"], final["warnings"]):
+                    step_values(st, final), final["intervals_95"], final["warnings"], final.get("units")):
                 ci = "" if interval == "-" else f"  95 % {interval}"
                 lines.append(f"       {name} = {value} {unit}".rstrip() + ci + ("  (!)" if flag else ""))
     lines.append("held-out NRMSE per signal (base model -> final model):")

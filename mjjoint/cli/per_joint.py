@@ -1,0 +1,205 @@
+"""``fit`` and ``diagnose`` on a multi-joint recording: each joint on its own, one report per joint.
+
+Joint j's columns (u_j, q_j, theta_j, tau_j) make a single-joint recording, and the ordinary
+single-joint fit or diagnosis runs on it from that joint's starting model: ``--base`` with the
+joint's ``--gear-ratio`` (one value for all joints or one per joint), a single-joint model
+file used for every joint, or a ``[[joint]]`` model file whose joint j is seen as the single
+arm with the rest of the arm frozen as a rigid load (``joint_view``). The other joints' motion
+is then a load the model lacks: docs/multijoint.md says when that matters.
+
+Output: DIR/joint{j}/ holds the usual files of that joint; DIR/diagnosis.json (or fit.json)
+gathers them under "joints", and DIR/index.html links them.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass, field
+
+from ..assets import ArmSpec
+from ..assets.multi import SerialArmFile
+from ..identify.effects import SEED_EFFECTS
+from ..identify.structure import Structure
+from ..identify.windows import Measured, Predictor, WindowDesign
+from ..recordings import MultiRecording, Recording
+from .errors import CliError
+from .fit import Problem, effect_list, read_input, run_info, structure_from_model
+from .joint_view import single_joint_models
+
+COUPLING = ("each joint was diagnosed alone, so the other joints' motion (their inertia, Coriolis and gravity "
+            "forces) is a load its model lacks: it can hide a missing effect or pass for one (docs/multijoint.md)")
+
+
+@dataclass
+class JointProblems:
+    """What fit and diagnose work on for a multi-joint recording: one Problem per selected joint."""
+
+    source: str
+    problems: dict[int, Problem]
+    notes: list[str] = field(default_factory=list)
+
+
+def requested(args: argparse.Namespace, model) -> bool:
+    """Whether the options alone say the recording has several joints."""
+    return (args.joint is not None or isinstance(model, SerialArmFile)
+            or isinstance(args.gear_ratio, tuple) or isinstance(args.k_m, tuple))
+
+
+def one_per_joint(option: str, value, n: int) -> list:
+    """One value per joint from an option given once for all joints or as a list of n."""
+    if not isinstance(value, tuple):
+        return [value] * n
+    if len(value) != n:
+        raise CliError(f"{option} gives {len(value)} values; the recording holds {n} joints "
+                       "(give one value for all, or one per joint)")
+    return list(value)
+
+
+def load_problems(args: argparse.Namespace, model, rec: MultiRecording | Recording | None = None) -> JointProblems:
+    """The selected joints' single-joint problems (one-line errors naming the joint)."""
+    if rec is None:
+        rec = read_input(args, None, None if isinstance(args.k_m, tuple) else args.k_m)
+        if isinstance(rec, MultiRecording) and isinstance(args.k_m, tuple):
+            ks = one_per_joint("--k-m", args.k_m, rec.n_joints)
+            rec = MultiRecording(tuple(r.with_columns(u=r.u * k) for r, k in zip(rec.joints, ks)), rec.meta)
+    if not isinstance(rec, MultiRecording):
+        raise CliError(f"{args.recording}: holds one joint (columns t,u,q,theta); --joint, lists of values and "
+                       "[[joint]] model files are for multi-joint recordings (columns u1,q1,theta1,...)")
+    n = rec.n_joints
+    joints = args.joint or tuple(range(1, n + 1))
+    if max(joints) > n:
+        raise CliError(f"--joint {max(joints)}: {args.recording} holds {n} joints (1-{n})")
+    bases, notes = starting_models(args, model, n)
+    design = WindowDesign(length=args.window_length, seed=args.seed)
+    problems = {}
+    for j in joints:
+        base = bases[j - 1]
+        try:
+            predictor = Predictor(Measured.from_recording(rec.joint(j), base.gear_ratio), design)
+        except ValueError as exc:
+            raise ValueError(f"joint {j}: {exc}") from None
+        problems[j] = Problem(f"{args.recording} joint {j}", predictor, base, [])
+    return JointProblems(str(args.recording), problems, [f"joint {j}: {m}" for j, m in notes if j in joints])
+
+
+def starting_models(args: argparse.Namespace, model, n: int) -> tuple[list[Structure], list[tuple[int, str]]]:
+    """Each joint's starting structure, and (joint, note) pairs on what a model file could not hold."""
+    gears = one_per_joint("--gear-ratio", args.gear_ratio, n)
+    if model is None:
+        if any(g is None for g in gears):
+            raise CliError("--gear-ratio N[,M...] is required (or a --model file that gives it)")
+        effects = SEED_EFFECTS if args.base is None else effect_list(args.base)
+        return [Structure.create(effects, ArmSpec(), g) for g in gears], []
+    if isinstance(model, SerialArmFile):
+        if len(model.joints) != n:
+            raise CliError(f"--model describes {len(model.joints)} joints; the recording holds {n}")
+        views = single_joint_models(model)
+    else:
+        views = [(model, [])] * n  # one single-joint model for every joint
+    bases, notes = [], []
+    for j, ((single, view_notes), gear) in enumerate(zip(views, gears), start=1):
+        try:
+            base, more = structure_from_model(single, gear)
+        except ValueError as exc:
+            raise CliError(f"joint {j}: {exc}") from None
+        bases.append(base)
+        notes += [(j, m) for m in view_notes + more]
+    return bases, notes
+
+
+# ---- running ---------------------------------------------------------------------------------
+
+def fit_joints(args: argparse.Namespace, out, jp: JointProblems) -> int:
+    """``mjjoint fit`` on each selected joint; DIR/joint{j}/ plus a top-level fit.json and index."""
+    from ..identify.fit import fit
+    from ..report.build import write_fit
+    from ..report.joints import write_joints_index
+    from ..report.output import write_json
+    from ..report.progress import FitProgress
+    from ..report.summary import nrmse_lines, parameter_table
+
+    results = {}
+    for j, problem in jp.problems.items():
+        start = time.perf_counter()
+        with FitProgress(args.max_iter, desc=f"fit joint {j}") as progress:
+            result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress)
+        results[j] = (result, time.perf_counter() - start)
+    with out.staged() as folder:
+        data = _write_each(folder, "fit", args, jp, results,
+                           lambda path, p, res, run: write_fit(path, p.predictor, res, p.base, p.source, run))
+        write_json(folder / "fit.json", {"joints": data})
+        write_joints_index(folder, "fit", jp.source, data, None, _top_run("fit", args, jp, results))
+    for j, (result, seconds) in results.items():
+        st = result.structure
+        print(f"== joint {j}: fitted {', '.join(st.effects) or 'the minimal model'} "
+              f"({result.iterations} iterations, {result.rollouts:.0f} full-length rollouts, {seconds:.1f} s)")
+        print(parameter_table(st.values, result.intervals, result.warnings))
+        print("held-out NRMSE per signal:")
+        print("\n".join(nrmse_lines(result.nrmse_test)))
+    print(f"wrote {out.path}/ (fit.json, index.html; joint1/ ... with each joint's fit)")
+    return 0
+
+
+def _write_each(folder, command: str, args, jp: JointProblems, results: dict, write) -> dict:
+    """Each joint's usual output in ``folder/joint{j}``; returns their JSON data by joint."""
+    data = {}
+    for j, (res, seconds) in results.items():
+        problem = jp.problems[j]
+        run = {**run_info(command, args, problem), "joint": j, "seconds": round(seconds, 3),
+               "rollouts_full_length": round(res.rollouts, 1)}
+        (folder / f"joint{j}").mkdir()
+        data[str(j)] = write(folder / f"joint{j}", problem, res, run)
+    return data
+
+
+def diagnose_joints(args: argparse.Namespace, out, jp: JointProblems, options) -> int:
+    """``mjjoint diagnose`` on each selected joint; names the joints where something is missing."""
+    from ..diagnosis.loop import diagnose
+    from ..report.build import write_diagnosis
+    from ..report.joints import write_joints_index
+    from ..report.output import write_json
+    from ..report.progress import StepLog
+    from ..report.summary import diagnosis_summary
+
+    log = StepLog()
+    results = {}
+    for j, problem in jp.problems.items():
+        start = time.perf_counter()
+        diag = diagnose(problem.predictor, problem.base, options, progress=lambda m, j=j: log(f"joint {j}: {m}"))
+        results[j] = (diag, time.perf_counter() - start)
+    with out.staged() as folder:
+        data = _write_each(folder, "diagnose", args, jp, results,
+                           lambda path, p, res, run: write_diagnosis(path, p.predictor, res, p.source, run))
+        summary = joints_verdict(data)
+        write_json(folder / "diagnosis.json", summary)
+        write_joints_index(folder, "diagnose", jp.source, data, summary, _top_run("diagnose", args, jp, results))
+    for j, (diag, seconds) in results.items():
+        print(f"== joint {j}")
+        print(diagnosis_summary(data[str(j)], seconds))
+    print(f"verdict: {summary['verdict']}")
+    print(f"report: {out.path / 'index.html'}  (data: diagnosis.json; joint1/ ... with each joint's report)")
+    return 0
+
+
+def joints_verdict(data: dict[str, dict]) -> dict:
+    """The top-level diagnosis.json: every joint's diagnosis, where something is missing, the verdict."""
+    mismatch = [int(j) for j, d in data.items() if d["missing"]]
+    clean = [j for j in data if int(j) not in mismatch]
+    named = [", ".join(data[str(j)]["missing"]) for j in mismatch]
+    parts = []
+    if len(mismatch) == 1:
+        parts.append(f"the mismatch is in joint {mismatch[0]}: {named[0]}")
+    elif mismatch:
+        each = "; ".join(f"joint {j}: {e}" for j, e in zip(mismatch, named))
+        parts.append(f"the mismatch is in joints {', '.join(map(str, mismatch))} ({each})")
+    if clean:
+        parts.append(f"nothing significant is missing in joint{'s' if len(clean) > 1 else ''} {', '.join(clean)}")
+    return {"joints": data, "mismatch_in": mismatch, "verdict": f"{'; '.join(parts)}. Note: {COUPLING}"}
+
+
+def _top_run(command: str, args: argparse.Namespace, jp: JointProblems, results: dict) -> dict:
+    """The top-level run.json: the invocation (windows are alike: one recording, one design) and totals."""
+    info = run_info(command, args, next(iter(jp.problems.values())))
+    return {**info, "recording": jp.source, "joints": list(results),
+            "seconds": round(sum(s for _, s in results.values()), 3),
+            "rollouts_full_length": round(sum(r.rollouts for r, _ in results.values()), 1)}

@@ -1,0 +1,107 @@
+"""EMPS (real prismatic drive): diagnose from a minimal rigid model, compare with the published fit.
+
+Runs ``mjjoint diagnose``'s loop on ``DATA_EMPS.mat`` starting from the carriage mass alone
+(a linear direct drive, ``assets/mjcf/linear_drive.xml``), writes the usual report, then
+scores the final model next to Janot et al.'s IDIM-LS reference on both files: parameters,
+their relative force error (with their own procedure, ``mjjoint.datasets.emps``), and the
+windowed position-prediction NRMSE on the validation file, which no fit has seen.
+
+    python scripts/emps_diagnose.py                  # ~5 min on 2 cores
+    python scripts/emps_diagnose.py --out out/emps --max-rounds 4
+
+Needs the EMPS files under $MJJOINT_DATA/emps (default ../shared/data/emps).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from mjjoint.assets.drive import DriveSpec
+from mjjoint.datasets.emps import (ESTIMATION, PUBLISHED, VALIDATION, emps_path, equivalent_parameters,
+                                   idim_relative_error, published_structure, read_emps)
+from mjjoint.diagnosis.loop import DiagnoseOptions, diagnose
+from mjjoint.identify.fit import evaluate
+from mjjoint.identify.structure import Structure
+from mjjoint.identify.windows import Measured, Predictor, WindowDesign
+from mjjoint.recordings import RecordingError
+from mjjoint.report.build import write_diagnosis
+from mjjoint.report.output import OutputDir, write_json
+from mjjoint.report.progress import StepLog
+
+NAMES = ("M [kg]", "Fv [N s/m]", "Fc [N]", "offset [N]")
+
+
+def predictor(path: Path, design: WindowDesign) -> Predictor:
+    return Predictor(Measured.from_recording(read_emps(path).recording, 1.0, output=False), design)
+
+
+def heldout_nrmse(pred: Predictor, structure: Structure) -> float:
+    """Position-prediction NRMSE over every window of a file the fit did not see."""
+    (p,) = pred.predict([structure])
+    every = np.arange(len(pred.starts))
+    return pred.nrmse(p, every)["q"]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", type=Path, default=Path("out/emps"))
+    ap.add_argument("--max-rounds", type=int, default=DiagnoseOptions.max_rounds)
+    ap.add_argument("--window-length", type=float, default=WindowDesign.length)
+    args = ap.parse_args(argv)
+    out = OutputDir(args.out)
+    try:
+        out.check()
+        est_file, val_file = emps_path(ESTIMATION), emps_path(VALIDATION)
+        design = WindowDesign(length=args.window_length)
+        est, val = predictor(est_file, design), predictor(val_file, WindowDesign(length=args.window_length))
+    except (FileNotFoundError, RecordingError, ValueError) as exc:
+        print(f"emps_diagnose: {exc}", file=sys.stderr)
+        return 2
+    nominal = DriveSpec()
+    base = Structure.create((), nominal, 1.0)
+    start = time.perf_counter()
+    diag = diagnose(est, base, DiagnoseOptions(max_rounds=args.max_rounds), progress=StepLog())
+    seconds = time.perf_counter() - start
+
+    ours, published = diag.final.structure, published_structure(nominal)
+    p_ours, p_pub = equivalent_parameters(ours), PUBLISHED.as_vector()
+    recs = {name: read_emps(path).recording for name, path in (("estimation", est_file), ("validation", val_file))}
+    table = {
+        "effects_found": diag.missing,
+        "alternatives": {s.effect: s.alternatives for s in diag.steps if s.alternatives},
+        "parameters": {n: {"ours": float(a), "published": float(b), "difference_percent": float(100 * (a - b) / abs(b))}
+                       for n, a, b in zip(NAMES, p_ours, p_pub)},
+        "idim_force_error_percent": {
+            k: {"ours": idim_relative_error(r, p_ours), "published": idim_relative_error(r, p_pub),
+                "published_paper": PUBLISHED.error_estimation if k == "estimation" else PUBLISHED.error_validation}
+            for k, r in recs.items()},
+        "position_prediction_nrmse": {
+            "estimation_heldout_windows": {"ours": diag.final.nrmse_test["q"],
+                                           "published": evaluate(est, published)[3]["q"]},
+            "validation_all_windows": {"ours": heldout_nrmse(val, ours), "published": heldout_nrmse(val, published)}},
+        "rollouts_full_length": round(diag.rollouts, 1), "seconds": round(seconds, 1),
+    }
+    with out.staged() as folder:
+        run = {"command": "scripts/emps_diagnose.py", "seconds": round(seconds, 1),
+               "rollouts_full_length": round(diag.rollouts, 1)}
+        write_diagnosis(folder, est, diag, str(est_file), run)
+        write_json(folder / "emps_comparison.json", table)
+    print(f"\nEMPS: {diag.verdict}")
+    print(f"{'':14s}{'ours':>12s}{'published':>12s}{'diff':>8s}")
+    for n, row in table["parameters"].items():
+        print(f"{n:14s}{row['ours']:12.4g}{row['published']:12.4g}{row['difference_percent']:7.1f}%")
+    for k, row in table["idim_force_error_percent"].items():
+        print(f"IDIM relative force error, {k:10s}: ours {row['ours']:.2f} %, published {row['published']:.2f} % "
+              f"(paper {row['published_paper']:.2f} %)")
+    for k, row in table["position_prediction_nrmse"].items():
+        print(f"position prediction NRMSE, {k:26s}: ours {row['ours']:.4f}, published {row['published']:.4f}")
+    print(f"{diag.rollouts:.0f} full-length rollouts, {seconds:.0f} s; report: {out.path / 'index.html'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
