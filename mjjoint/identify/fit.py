@@ -129,7 +129,8 @@ def _intervals(residual, x, lo, hi, names, structure: Structure):
         elif wide:
             warnings.append(f"{name} = {value:.4g} is poorly identifiable from this recording "
                             f"(95 % interval {out[name][0]:.3g} .. {out[name][1]:.3g})")
-    cond = float(lam.max() / max(lam.min(), 1e-300))
+    with np.errstate(over="ignore"):  # a singular J^T J: cond = inf, reported below
+        cond = float(lam.max() / max(lam.min(), 1e-300))
     if cond > 1e12:
         warnings.append(f"parameters are nearly collinear (cond(J^T J) = {cond:.1e})")
     return out, warnings

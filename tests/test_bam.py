@@ -1,0 +1,192 @@
+"""The Rhoban BAM servo-pendulum logs (real data): reader, servo model, windows, closed-loop replay.
+
+Skipped when the dataset folder is absent (``$MJJOINT_DATA`` or ``<repo>/../shared/data``,
+sub-folder bam_pendulum). The fits of scripts/bam_diagnose.py are under @pytest.mark.slow.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from mjjoint.datasets import bam
+from mjjoint.identify.fit import evaluate, fit
+from mjjoint.recordings import RecordingError
+
+BASE = ("coulomb_friction", "viscous_friction", "gravity")
+
+
+@pytest.fixture(scope="module")
+def logs():
+    try:
+        paths = bam.log_paths()
+    except FileNotFoundError as exc:
+        pytest.skip(f"BAM pendulum logs not available: {exc}")
+    return {lg.name: lg for lg in (bam.read_log(p) for p in paths)}
+
+
+def test_reader_shapes_units_and_conventions(logs):
+    assert len(logs) == 16
+    for log in logs.values():
+        rec = bam.to_recording(log)
+        assert rec.n == len(log.t) and rec.gear_ratio == bam.GEAR_RATIO
+        assert rec.t[0] == 0.0 and np.allclose(np.diff(rec.t), 0.005, atol=1e-9)
+        # One encoder at the output: q is the motor angle through the rigid gear, no deflection.
+        assert np.array_equal(rec.q / bam.GEAR_RATIO - rec.theta, np.zeros(rec.n))
+        assert np.allclose(rec.theta, log.position, rtol=0, atol=1e-12)
+        assert np.max(np.abs(rec.theta)) < np.pi
+        # Motor-side torque: the XL330 cannot exceed its stall torque kt vin / R through the gear.
+        stall = bam.XL330_M6.gain * log.vin / bam.GEAR_RATIO
+        assert np.max(np.abs(rec.u)) <= 2 * stall
+
+
+def test_duty_model_matches_the_logged_pwm_register(logs):
+    """ERROR_GAIN and kp's units: the firmware's own Present PWM equals the modelled duty."""
+    for log in logs.values():
+        measured = log.measured_duty()
+        ok = np.isfinite(measured) & (log.enable > 0)
+        assert ok.mean() > 0.9 or log.trajectory == "lift_and_drop"
+        err = measured[ok] - log.duty()[ok]
+        assert np.sqrt(np.mean(err ** 2)) < 0.05, log.name
+
+
+def test_torque_pushes_toward_the_goal_and_vanishes_when_released(logs):
+    for log in logs.values():
+        u = bam.to_recording(log, back_emf=False).u
+        err = log.goal - log.position
+        on = (log.enable > 0) & (np.abs(err) > 2 * np.pi / bam.ENCODER_COUNTS)
+        assert np.all(np.sign(u[on]) == np.sign(err[on])), log.name
+        assert np.all(u[log.enable == 0] == 0.0)
+        # With the back-EMF in u, the same holds at rest.
+        u_emf = bam.to_recording(log).u
+        rest = on & (np.abs(log.speed()) < 0.01)
+        assert np.all(np.sign(u_emf[rest]) == np.sign(err[rest])), log.name
+
+
+def test_released_swing_is_not_braked_by_the_back_emf(logs):
+    """Why u carries the back-EMF: with torque released the swing decays far slower than kt^2/R."""
+    for name in ("lift_and_drop_kp100", "lift_and_drop_kp400"):
+        log = logs[name]
+        w = log.speed()
+        acc = np.gradient(w, log.dt)
+        free = np.flatnonzero(log.enable == 0)[10:-10]
+        # J theta'' = -m g l sin(theta) - b theta' - Fc sgn(theta'), least squares in (mgl/J, b/J, Fc/J).
+        a = np.column_stack([np.sin(log.position[free]), w[free], np.sign(w[free])])
+        k = np.linalg.lstsq(a, -acc[free], rcond=None)[0]
+        inertia = log.mass * 9.81 * log.length / k[0]
+        assert 0.5 * log.mass * log.length ** 2 < inertia < 3 * log.mass * log.length ** 2
+        assert 0 < k[1] * inertia < 0.5 * bam.XL330_M6.electrical_damping, name
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ("not json", "not a JSON log"),
+    ("[1, 2]", "top level"),
+    ('{"mass": 0.49, "length": 0.1, "kp": 100, "vin": 7.4, "entries": []}', "'dt' is missing"),
+])
+def test_malformed_files_fail_in_one_line(tmp_path, text, fragment):
+    path = tmp_path / "bad.json"
+    path.write_text(text)
+    with pytest.raises(RecordingError, match=fragment) as info:
+        bam.read_log(path)
+    assert "\n" not in str(info.value)
+
+
+def _log_dict(n=40, **changes):
+    entries = [{"timestamp": 0.005 * i, "position": 0.01 * i, "goal_position": 0.1, "torque_enable": True,
+                "speed": 0.0, "load": 3.0, "input_volts": 7.3, "temp": 30.0} for i in range(n)]
+    data = {"mass": 0.49, "length": 0.1, "kp": 100, "vin": 7.4, "motor": "xl330", "trajectory": "t", "dt": 0.005,
+            "entries": entries}
+    for key, value in changes.items():
+        if key.startswith("entry_"):
+            entries[3][key[6:]] = value
+        else:
+            data[key] = value
+    return data
+
+
+@pytest.mark.parametrize("changes, fragment", [
+    ({"kp": -5}, "kp=-5"),
+    ({"motor": "mx64"}, "not supported"),
+    ({"entry_timestamp": 0.0}, "timestamps must increase"),
+    ({"entry_position": 57.0}, "not radians"),
+    ({"entry_torque_enable": "yes"}, "torque_enable"),
+    ({"entry_goal_position": None}, "finite number"),
+    ({"dt": 5.0}, "not dt=5"),
+])
+def test_bad_values_fail_in_one_line(tmp_path, changes, fragment):
+    path = tmp_path / "log.json"
+    path.write_text(json.dumps(_log_dict(**changes)))
+    with pytest.raises(RecordingError, match=fragment) as info:
+        bam.read_log(path)
+    assert "\n" not in str(info.value)
+
+
+def test_a_valid_minimal_log_reads(tmp_path):
+    path = tmp_path / "log.json"
+    path.write_text(json.dumps(_log_dict()))
+    rec = bam.read_bam(path)
+    assert rec.n == 40 and rec.meta["kp"] == 100
+
+
+def test_stacked_windows_never_cross_a_join(logs):
+    recs = [bam.to_recording(logs[n]) for n in ("sin_sin_kp100", "lift_and_drop_kp200", "up_and_down_kp400")]
+    pred = bam.predictor(recs, window=0.2)
+    n = pred.nwin_samples
+    lengths = [(rec.n // n) * n for rec in recs]
+    joins = np.cumsum(lengths)[:-1]
+    for s in pred.starts:
+        assert not np.any((joins > s) & (joins < s + n))
+    # Each log's samples sit unchanged at its offset; only q is compared (one encoder).
+    for rec, start in zip(recs, np.concatenate([[0], joins])):
+        assert np.allclose(pred.m.q[start:start + lengths[0] // 2], rec.q[:lengths[0] // 2])
+    assert pred.signals == ("q",)
+    assert len(pred.test) >= 5
+
+
+def test_nominal_model_is_stable_and_its_friction_acts(logs):
+    """BAM's published Coulomb-viscous values, mapped to the motor side, predict better than none."""
+    log = logs["sin_sin_kp200"]
+    pred = bam.predictor([bam.to_recording(log, bam.XL330_M1)], window=0.2)
+    with_friction = bam.structure(BASE, log, bam.XL330_M1, bam.bam_values(bam.XL330_M1))
+    with_friction.compile()  # load_model: stability checked at the nominal timestep
+    lo = {p.name: p.lo for p in with_friction.params}
+    frictionless = with_friction.with_values({k: lo[k] for k in ("coulomb_friction.fc", "viscous_friction.sigma")})
+    cost = lambda s: sum(evaluate(pred, s)[:2])
+    assert cost(with_friction) < 0.8 * cost(frictionless)
+
+
+def test_mujoco_replay_agrees_with_bams_own_equations(logs):
+    """The same model (BAM m1, no angle offset) run by MuJoCo and by BAM's simulator step."""
+    params = {k: v for k, v in bam.BAM_PARAMS["m1"].items() if k != "q_offset"}
+    struct = bam.structure(BASE, None, bam.XL330_M1, bam.bam_values(bam.XL330_M1))
+    for name in ("sin_sin_kp100", "sin_sin_kp800"):
+        log = logs[name]
+        ours = bam.replay(struct, log, bam.XL330_M1)
+        theirs = bam.bam_rollout(log, params)
+        assert np.sqrt(np.mean((ours - theirs) ** 2)) < 0.05 * np.std(log.position), name
+
+
+@pytest.mark.slow
+def test_fitted_viscous_friction_holds_the_back_emf_only_when_u_leaves_it_out(logs):
+    """u without back-EMF: the fitted viscous coefficient is of the order of kt ke / R; with it, far below."""
+    log = logs["sin_time_square_kp400"]
+    n2 = bam.GEAR_RATIO ** 2
+    sigma = {}
+    for back_emf in (False, True):
+        pred = bam.predictor([bam.to_recording(log, back_emf=back_emf)], window=0.2)
+        res = fit(pred, bam.structure(BASE, log), max_iter=20)
+        sigma[back_emf] = res.structure.values["viscous_friction.sigma"] * n2
+    damping = bam.XL330_M6.electrical_damping
+    assert 0.3 * damping < sigma[False] < 3 * damping
+    assert sigma[True] < sigma[False] - 0.5 * damping
+
+
+@pytest.mark.slow
+def test_coulomb_viscous_fit_beats_a_frictionless_fit(logs):
+    log = logs["sin_sin_kp400"]
+    pred = bam.predictor([bam.to_recording(log)], window=0.2)
+    friction = fit(pred, bam.structure(BASE, log), max_iter=20)
+    none = fit(pred, bam.structure(("gravity",), log), max_iter=20)
+    assert friction.cost_test < 0.8 * none.cost_test
+    assert friction.structure.values["viscous_friction.sigma"] > 0
