@@ -1,0 +1,50 @@
+"""scripts/bench_fit.py runs end to end at smoke sizes and reports finite, sane numbers.
+
+Not a timing test (speed is judged by the script's own ratios, on a quiet machine): this only
+checks that every section runs and that what it reports can be physical.
+"""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "bench_fit.py"
+
+
+def test_quick_run_reports_sane_numbers(tmp_path):
+    out = tmp_path / "bench.json"
+    proc = subprocess.run([sys.executable, str(SCRIPT), "--quick", "--json", str(out)],
+                          check=False, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    r = json.loads(out.read_text())
+
+    for timer in ("rollout", "mj_step loop"):
+        step = r["per_step"][timer]
+        assert step["plugin_us"] > 0 and step["bare_us"] > 0
+        # The plugin adds work to the same MJCF: it cannot be much cheaper than the bare arm.
+        assert 0.8 < step["ratio"] < 20
+
+    par = r["parallel"]
+    for what in ("rollout", "predict"):
+        assert 0 < par[what]["efficiency"] <= 1.5
+        assert math.isclose(par[what]["speedup"] / par["cores"], par[what]["efficiency"])
+
+    sysid = r["sysid"]
+    if sysid["available"]:
+        row = sysid["exact"]
+        assert row["ours_seconds"] > 0 and row["sysid_seconds"] > 0 and row["time_ratio"] > 0
+        for who in ("ours", "sysid", "truth"):
+            assert math.isfinite(row[who]["heldout_cost"]) and row[who]["heldout_cost"] >= 0
+            assert math.isfinite(row[who]["sysid_objective"]) and row[who]["sysid_objective"] >= 0
+        # The recording is of the fitted model itself: from a start 1.5-2x off, our fit must
+        # come back near the held-out cost of the true values.
+        assert row["ours"]["heldout_cost"] < 10 * row["truth"]["heldout_cost"]
+    else:
+        assert sysid["reason"]
+
+    diag = r["diagnosis"]
+    assert diag["rollouts"] > 0 and diag["wall_s"] > 0
+    assert math.isfinite(diag["nrmse_before"]) and math.isfinite(diag["nrmse_after"])
