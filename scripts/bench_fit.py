@@ -18,8 +18,8 @@
 
 Wall times depend on what else runs; the load average is printed with every section.
 
-    python scripts/bench_fit.py                       # (a)-(d), a few minutes on 2 cores
-    python scripts/bench_fit.py --memory              # adds (e), ~10 more minutes
+    python scripts/bench_fit.py                       # (a)-(d), ~3 minutes on 2 cores
+    python scripts/bench_fit.py --memory              # adds (e): over an hour on 2 cores
     python scripts/bench_fit.py --quick --json x.json # smoke sizes, < 60 s
 """
 from __future__ import annotations
