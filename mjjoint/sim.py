@@ -38,6 +38,10 @@ class JointIndex:
     actuator: int         # actuator driving the motor joint (-1: none)
     k_m: float
 
+    def step_over_inertia(self, model: mujoco.MjModel) -> float:
+        """h/J of the motor dof, as the plugin's compute reads it (``kernels.motor_friction``)."""
+        return float(model.opt.timestep * model.dof_invweight0[self.motor_dof]) if self.motor_dof >= 0 else 0.0
+
 
 def joint_indices(model: mujoco.MjModel) -> list[JointIndex]:
     """One ``JointIndex`` per ``mjjoint.joint`` instance, in instance order."""
@@ -184,7 +188,7 @@ class Simulator:
             theta = qpos[:, ji.link_qpos] if ji.link_qpos >= 0 else zero
             qd = qvel[:, ji.motor_dof] if ji.motor_dof >= 0 else zero
             thd = qvel[:, ji.link_dof] if ji.link_dof >= 0 else zero
-            tau, fric, load = joint_traces(ji.block, st, q, qd, theta, thd)
+            tau, fric, load = joint_traces(ji.block, st, q, qd, theta, thd, ji.step_over_inertia(self.model))
             out.append(Trace(t=states[:, 0].copy(), u=u2[:, j].copy(), q=q.copy(), theta=theta.copy(),
                              qd=qd.copy(), thetad=thd.copy(), tau=tau, friction=fric, load_friction=load,
                              states=st, gear_ratio=ji.gear_ratio, qpos=qpos.copy()))

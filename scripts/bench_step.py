@@ -109,9 +109,11 @@ class StepLoopTimer:
             self.lq, self.ld = int(link.qposadr[0]), int(link.dofadr[0])
             self.block = pack(JointParams(), self.mq, self.md, self.lq, self.ld)
             self.st = np.zeros(NSTATE)
+            self.hj = float(model.opt.timestep * model.dof_invweight0[self.md])
 
     def passive(self, m, d) -> None:
-        fm, fl = joint_forces(self.block, self.st, d.qpos[self.mq], d.qvel[self.md], d.qpos[self.lq], d.qvel[self.ld])
+        fm, fl = joint_forces(self.block, self.st, d.qpos[self.mq], d.qvel[self.md], d.qpos[self.lq], d.qvel[self.ld],
+                              self.hj)
         d.qfrc_passive[self.md] += fm
         d.qfrc_passive[self.ld] += fl
 

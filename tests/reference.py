@@ -45,6 +45,14 @@ def twosep_force(z1, z2, w, b):
     return 1.0 * z1 + (lag if sgn(z2) == sgn(w) != 0 else 0.0)
 
 
+def twosep_force_implicit(z1, z2, w, b, hj):
+    """Eq. 11 with the lag damper c = B|z2| of a backward-Euler step on inertia J, hj = h/J:
+    its force c w1 at the end velocity w1 solves w1 = w - hj c w1."""
+    c = b * abs(z2) if sgn(z2) == sgn(w) != 0 else 0.0
+    w1 = w / (1.0 + hj * c)
+    return z1 + c * w1
+
+
 def _presliding_primitive(s, k):
     """A primitive of K exp(-K|s|) in s: Eq. 12 reads dz1 = |Omega| K exp(-K|q_r|) dq_r."""
     return sgn(s) * (1.0 - math.exp(-k * abs(s)))
@@ -161,10 +169,10 @@ class JointState:
         return [self.z1, self.z2, self.omega, self.q_r, self.w_sign, self.x]
 
 
-def _motor_friction(p: JointParams, s: JointState, wq: float) -> float:
+def _motor_friction(p: JointParams, s: JointState, wq: float, hj: float) -> float:
     f = p.friction
     if isinstance(f, TwoSEP):
-        return twosep_force(s.z1, s.z2, wq, f.b)
+        return twosep_force_implicit(s.z1, s.z2, wq, f.b, hj)
     if isinstance(f, StaticFriction):
         return static_friction(wq, f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps)
     return 0.0
@@ -177,10 +185,10 @@ def _transmitted(p: JointParams, s: JointState, q, wq, theta, wtheta) -> float:
                                t.damping, t.backlash)
 
 
-def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta) -> tuple[float, float]:
+def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, hj) -> tuple[float, float]:
     """(motor, link) generalised forces: u side m q'' = -T/N - f + r, link M theta'' = T - F_L."""
     t = _transmitted(p, s, q, wq, theta, wtheta)
-    motor = -t / p.transmission.gear_ratio - _motor_friction(p, s, wq)
+    motor = -t / p.transmission.gear_ratio - _motor_friction(p, s, wq, hj)
     if p.ripple is not None:
         motor += ripple_torque(q, p.ripple.amplitude, p.ripple.harmonic, p.ripple.phase)
     link = t

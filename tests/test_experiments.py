@@ -151,11 +151,6 @@ def test_lab_step_velocity_peaks_then_gravity_brakes_the_link():
     assert 0 < tr.theta[-1] < np.pi / 2
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "core: after the kicked rotor stops, it keeps a ~700 Hz dither (rms ~0.06 rad/s, ~1400 "
-    "velocity reversals/s) that does not decay over 7 s at the default 0.5 ms step and shrinks "
-    "with the step (0.02 rad/s at 0.1 ms): a numerical limit cycle of the explicitly integrated "
-    "2SEP friction, visible as a sharp ~660 Hz line in every impulse FRF"))
 def test_lab_free_arm_comes_to_rest_after_the_impulse():
     # A dissipative joint left alone must come to rest; the FRF's FFT also relies on it.
     sim = Simulator(sample_rate=lab.FRF_RATE)

@@ -121,6 +121,20 @@ def test_twosep_force(z1, z2, w, b):
 
 
 @SETTINGS
+@given(z1=finite(-2.0, 2.0), z2=finite(-50.0, 50.0), w=velocity, b=finite(0.0, 500.0), hj=finite(0.0, 1e3))
+@example(z1=0.08, z2=1.0, w=0.0, b=50.0, hj=10.0)
+def test_twosep_force_implicit(z1, z2, w, b, hj):
+    f = twosep.twosep_force_implicit(z1, z2, w, b, hj)
+    assert close(f, ref.twosep_force_implicit(z1, z2, w, b, hj), scale=abs(z1) + abs(b * w * z2))
+    # The lag damper alone never reverses nor amplifies the velocity over a step, whatever its
+    # slope (the explicit form does once B|z2| h/J > 2), and it is the literal force as h/J -> 0.
+    w1 = w - hj * (f - z1)
+    assert w1 * w >= 0.0 and abs(w1) <= abs(w) * (1 + 1e-12)
+    assert close(twosep.twosep_force_implicit(z1, z2, w, b, 0.0), twosep.twosep_force(z1, z2, w, b),
+                 scale=abs(z1) + abs(b * w * z2))
+
+
+@SETTINGS
 @given(s=reachable_2sep_states(), w=velocity, h=finite(1e-5, 1e-2), p=twoseps())
 @example(s=(0.0, 0.0, 0.0, 0.0, 0.0), w=0.0, h=5e-4, p=TwoSEP())           # rest, no motion
 @example(s=(0.0, 0.0, 0.0, 0.0, 0.0), w=0.2, h=5e-4, p=TwoSEP())           # first motion
@@ -213,19 +227,19 @@ def joint_motion(draw) -> tuple[float, float, float, float]:
 
 
 @SETTINGS
-@given(p=joint_params(), s=joint_states(), m=joint_motion(), h=finite(1e-5, 2e-3))
-@example(p=JointParams(), s=ref.JointState(), m=(0.0, 0.0, 0.0, 0.0), h=5e-4)
+@given(p=joint_params(), s=joint_states(), m=joint_motion(), h=finite(1e-5, 2e-3), hj=finite(0.0, 100.0))
+@example(p=JointParams(), s=ref.JointState(), m=(0.0, 0.0, 0.0, 0.0), h=5e-4, hj=10.0)
 @example(p=JointParams(friction=StaticFriction(), ripple=TorqueRipple(),
                        transmission=Transmission(backlash=0.002)),
-         s=ref.JointState(x=0.001), m=(0.3, 2.0, 0.0005, -1.0), h=5e-4)
-def test_joint_forces_and_advance(p, s, m, h):
+         s=ref.JointState(x=0.001), m=(0.3, 2.0, 0.0005, -1.0), h=5e-4, hj=10.0)
+def test_joint_forces_and_advance(p, s, m, h, hj):
     theta, wq, delta, wtheta = m
     n = p.transmission.gear_ratio
     q = n * (theta + delta)
     blk = pack(p, 0, 0, 1, 1)
     st_arr = np.array(s.as_list())
-    fm, fl = kernels.joint_forces(blk, st_arr, q, wq, theta, wtheta)
-    rm, rl = ref.joint_forces(p, s, q, wq, theta, wtheta)
+    fm, fl = kernels.joint_forces(blk, st_arr, q, wq, theta, wtheta, hj)
+    rm, rl = ref.joint_forces(p, s, q, wq, theta, wtheta, hj)
     t = p.transmission
     scale = t.k1 * 0.06 + t.k2 * 0.06 ** 2 + t.k3 * 0.06 ** 3 + 300.0
     # q/N - theta loses the bits of theta: relative to |theta| + |delta|, not to delta.

@@ -85,6 +85,7 @@ class Offsets:
     m_jnt_type: int
     m_jnt_qposadr: int
     m_jnt_dofadr: int
+    m_dof_invweight0: int
     m_plugin_stateadr: int
     m_plugin_attr: int
     m_plugin_attradr: int
@@ -109,7 +110,7 @@ def offsets() -> Offsets:
     for name in ("qvel", "qfrc_passive", "ctrl", "xpos", "qacc"):
         if _read_u64(d._address + dd[name]) != getattr(d, name).ctypes.data:
             raise RuntimeError(f"mjData.{name} offset check failed for mujoco {mujoco.__version__}")
-    for name in ("jnt_type", "jnt_dofadr", "body_mass", "dof_damping", "actuator_gear"):
+    for name in ("jnt_type", "jnt_dofadr", "dof_invweight0", "body_mass", "dof_damping", "actuator_gear"):
         if _read_u64(m._address + mm[name]) != getattr(m, name).ctypes.data:
             raise RuntimeError(f"mjModel.{name} offset check failed for mujoco {mujoco.__version__}")
     # opt.timestep lives in the embedded mjOption before the pointer run: find it by value.
@@ -125,6 +126,7 @@ def offsets() -> Offsets:
         d_qpos=dd["qpos"], d_qvel=dd["qvel"], d_qfrc_passive=dd["qfrc_passive"],
         d_plugin_state=dd["plugin_state"], d_plugin_data=dd["plugin_data"],
         m_jnt_type=mm["jnt_type"], m_jnt_qposadr=mm["jnt_qposadr"], m_jnt_dofadr=mm["jnt_dofadr"],
+        m_dof_invweight0=mm["dof_invweight0"],
         m_plugin_stateadr=mm["plugin_stateadr"], m_plugin_attr=mm["plugin_attr"],
         m_plugin_attradr=mm["plugin_attradr"], m_timestep=hits[0],
     )

@@ -14,7 +14,7 @@ from ..physics.load import bearing_friction
 from ..physics.ripple import ripple_torque
 from ..physics.stribeck import static_friction
 from ..physics.transmission import engaged, transmission_torque
-from ..physics.twosep import twosep_force, twosep_step
+from ..physics.twosep import twosep_force_implicit, twosep_step
 from .layout import (ASYM, B, BACKLASH, BW_A, BW_BETA, BW_GAMMA, BW_N, DAMP, FC, FKIND,
                      FRICTION_2SEP, FRICTION_STATIC, FS, GEAR, HYST, K, K1, K2, K3, L_FC,
                      L_VEPS, L_VISC, LOAD, MU, OMEGA, QR, R_AMP, R_K, R_PHASE, RIPPLE,
@@ -22,11 +22,15 @@ from .layout import (ASYM, B, BACKLASH, BW_A, BW_BETA, BW_GAMMA, BW_N, DAMP, FC,
 
 
 @njit(cache=True)
-def motor_friction(blk, st, w):
-    """Friction torque opposing the motor (2SEP, static map or none)."""
+def motor_friction(blk, st, w, hj):
+    """Friction torque opposing the motor (2SEP, static map or none).
+
+    ``hj`` = h / J, the step over the motor dof's apparent inertia: 2SEP's lag term is applied
+    linearly implicitly against it (``twosep.twosep_force_implicit``).
+    """
     kind = blk[FKIND]
     if kind == FRICTION_2SEP:
-        return twosep_force(st[Z1], st[Z2], w, blk[B])
+        return twosep_force_implicit(st[Z1], st[Z2], w, blk[B], hj)
     if kind == FRICTION_STATIC:
         return static_friction(w, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM], blk[VEPS])
     return 0.0
@@ -41,10 +45,10 @@ def transmitted(blk, st, q, wq, theta, wtheta):
 
 
 @njit(cache=True)
-def joint_forces(blk, st, q, wq, theta, wtheta):
+def joint_forces(blk, st, q, wq, theta, wtheta, hj):
     """Generalised forces (motor, link) of the joint physics: -T/N - F + ripple, T - F_L."""
     t = transmitted(blk, st, q, wq, theta, wtheta)
-    fm = -t / blk[GEAR] - motor_friction(blk, st, wq)
+    fm = -t / blk[GEAR] - motor_friction(blk, st, wq, hj)
     if blk[RIPPLE] != 0.0:
         fm += ripple_torque(q, blk[R_AMP], blk[R_K], blk[R_PHASE])
     fl = t
@@ -78,8 +82,9 @@ def joint_advance(blk, st, q, wq, theta, wtheta, h):
 
 
 @njit(cache=True)
-def joint_traces(blk, states, q, wq, theta, wtheta):
-    """Transmission torque, motor friction and load friction along a trajectory."""
+def joint_traces(blk, states, q, wq, theta, wtheta, hj):
+    """Transmission torque, motor friction and load friction along a trajectory (``hj``: as in
+    ``motor_friction``)."""
     n = q.shape[0]
     tau = np.empty(n)
     fric = np.empty(n)
@@ -87,6 +92,6 @@ def joint_traces(blk, states, q, wq, theta, wtheta):
     for i in range(n):
         st = states[i]
         tau[i] = transmitted(blk, st, q[i], wq[i], theta[i], wtheta[i])
-        fric[i] = motor_friction(blk, st, wq[i])
+        fric[i] = motor_friction(blk, st, wq[i], hj)
         load[i] = bearing_friction(wtheta[i], blk[L_FC], blk[L_VISC], blk[L_VEPS]) if blk[LOAD] != 0.0 else 0.0
     return tau, fric, load

@@ -143,7 +143,7 @@ def _compile_hot_callbacks(off: abi.Offsets):
     """numba cfuncs for nstate, reset, compute and advance, with the offsets baked in."""
     d_qpos, d_qvel, d_frc = off.d_qpos, off.d_qvel, off.d_qfrc_passive
     d_state, d_data = off.d_plugin_state, off.d_plugin_data
-    m_stateadr, m_dt = off.m_plugin_stateadr, off.m_timestep
+    m_stateadr, m_dt, m_invw = off.m_plugin_stateadr, off.m_timestep, off.m_dof_invweight0
     m_attr, m_attradr = off.m_plugin_attr, off.m_plugin_attradr
     keys_addr, params_addr, cap = registry.KEYS_ADDRESS, registry.PARAMS_ADDRESS, registry.CAPACITY
 
@@ -194,8 +194,9 @@ def _compile_hot_callbacks(off: abi.Offsets):
             frc[0] = np.nan
             return
         blk, st, q, wq, th, wth = joint_state(m, d, instance, r)
-        fm, fl = joint_forces(blk, st, q, wq, th, wth)
         md, ld = int(blk[MD]), int(blk[LD])
+        hj = f64_at(m, m_dt) * f64_array(field(m, m_invw), md + 1)[md] if md >= 0 else 0.0
+        fm, fl = joint_forces(blk, st, q, wq, th, wth, hj)
         frc = f64_array(field(d, d_frc), max(md, ld) + 1)
         if md >= 0:
             frc[md] += fm

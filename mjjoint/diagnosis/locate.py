@@ -51,6 +51,7 @@ RESONANCE_PEAK_RATIO = 2.0  # Welch scatter of a few segments reaches ~2x the tr
 MAX_LAG_S = 0.050           # [s]: larger shifts are timing faults, not missing physics
 NULL_SIGMAS = 4.0
 NULL_BLOCK_S = 0.2          # [s]: residual correlation shorter than this is treated as noise
+NULL_BATCH = 5              # columns (residual + nulls) scored at once: bounds the transient memory
 WINDOW_LEVEL = 0.25         # a window spans the stretch where the envelope stays above this x peak
 
 
@@ -435,19 +436,37 @@ def condition_scores(
         return []
     rng = np.random.default_rng(seed)
     block = 1 if dt is None else max(1, round(NULL_BLOCK_S / dt))
-    nulls = {
-        "block": np.column_stack([r0] + [_block_permutation(r0, block, rng) for _ in range(n_permutations)]),
-        "sample": np.column_stack([r0] + [rng.permutation(r0) for _ in range(n_permutations)]),
-    }
+    permute = {"block": lambda: _block_permutation(r0, block, rng), "sample": lambda: rng.permutation(r0)}
+    conds = _conditions(conditions, dt, measured)
+    values: dict[str, list[np.ndarray]] = {c.name: [] for c in conds}
+    found: dict[str, dict[str, float]] = {}
+    # All conditions of one null kind see the same null residuals, made NULL_BATCH columns at a
+    # time (block ones first, as one stream of the seeded generator): the lag and resonance
+    # statistics hold several times a column's size per column, which for all columns at once
+    # grew with the record by ~1 kB per sample.
+    for kind in ("block", "sample"):
+        todo = n_permutations
+        first = True
+        while first or todo > 0:
+            batch = [permute[kind]() for _ in range(min(todo, NULL_BATCH - first))]
+            todo -= len(batch)
+            R = np.column_stack(([r0] if first else []) + batch)
+            for cond in (c for c in conds if c.null == kind):
+                v, params = cond.evaluate(R)
+                values[cond.name].append(v)
+                if first:
+                    found[cond.name] = params
+            first = False
     scores = []
-    for cond in _conditions(conditions, dt, measured):
-        values, params = cond.evaluate(nulls[cond.null])
-        null = values[1:]
+    for cond in conds:
+        v = np.concatenate(values[cond.name])
+        null = v[1:]
         threshold = min_effect
         if null.size > 1:
             threshold = max(threshold, float(null.mean() + NULL_SIGMAS * null.std(ddof=1)))
-        score = float(values[0])
-        scores.append(ConditionScore(cond.name, score, threshold, cond.describe(score, params), params))
+        score = float(v[0])
+        scores.append(ConditionScore(cond.name, score, threshold, cond.describe(score, found[cond.name]),
+                                     found[cond.name]))
     return sorted(scores, key=lambda s: -s.score)
 
 

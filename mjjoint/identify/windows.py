@@ -197,7 +197,7 @@ class Predictor:
         th = np.zeros_like(q) if grounded else flat[:, 1 + ji.link_qpos]
         thd = np.zeros_like(q) if grounded else flat[:, 1 + model.nq + ji.link_dof]
         st = np.ascontiguousarray(flat[:, ji.state_start:ji.state_start + NSTATE])
-        tau, _, _ = joint_traces(ji.block, st, q, qd, th, thd)
+        tau, _, _ = joint_traces(ji.block, st, q, qd, th, thd, ji.step_over_inertia(model))
         shape = (nw, ns)
         # Copies: views of q and theta would keep all of ``full`` (every state column) alive.
         return {"q": q.reshape(shape).copy(), "theta": th.reshape(shape).copy(),
