@@ -10,7 +10,10 @@ One process, single thread. Each configuration is the shipped arm (build_arm def
             cogging (mujoco >= 3.17), sized like the plugin's defaults;
   callback  no plugin, the same physics from Python: mjcb_passive calls the numba kernels
             (joint_forces) and the loop calls joint_advance after each mj_step, with the
-            internal states in a Python-held array: what the plugin replaces.
+            internal states in a Python-held array: what the plugin replaces;
+  kernels   the plugin's physics alone (joint_forces + joint_advance in a compiled loop over
+            the plugin run's own trajectory), no MuJoCo: the part of the overhead that is
+            physics rather than mechanism, as a share of the bare step.
 Two timers: mujoco.rollout (single thread, outputs preallocated) and a Python loop of
 mj_step; the callback can only run in the latter. Times are this thread's CPU time, so other
 processes on a shared machine do not count; every repeat re-runs all configurations in turn
@@ -26,6 +29,7 @@ import time
 import mujoco
 import numpy as np
 from mujoco import rollout
+from numba import njit
 
 from mjjoint.assets import ArmSpec, build_arm, load_model
 from mjjoint.coupling.kernels import joint_advance, joint_forces
@@ -143,6 +147,37 @@ class StepLoopTimer:
         return time.thread_time() - t
 
 
+@njit(cache=True)
+def _replay(blk, st, q, wq, theta, wtheta, hj, h):
+    acc = 0.0
+    for i in range(q.shape[0]):
+        fm, fl = joint_forces(blk, st, q[i], wq[i], theta[i], wtheta[i], hj)
+        joint_advance(blk, st, q[i], wq[i], theta[i], wtheta[i], h)
+        acc += fm + fl
+    return acc
+
+
+class KernelTimer:
+    """The plugin's physics kernels over the plugin model's own trajectory, without MuJoCo."""
+
+    def __init__(self, model: mujoco.MjModel, steps: int):
+        from mjjoint.sim import joint_indices
+        ji = joint_indices(model)[0]
+        timer = RolloutTimer(model, steps)
+        timer()
+        nq = model.nq
+        s = timer.state[0]
+        self.args = (ji.block, np.zeros(NSTATE), s[:, 1 + ji.motor_qpos].copy(), s[:, 1 + nq + ji.motor_dof].copy(),
+                     s[:, 1 + ji.link_qpos].copy(), s[:, 1 + nq + ji.link_dof].copy(),
+                     ji.step_over_inertia(model), model.opt.timestep)
+
+    def __call__(self) -> float:
+        self.args[1][:] = 0.0
+        t = time.thread_time()
+        _replay(*self.args)
+        return time.thread_time() - t
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=20000, help="steps per timed run (default 20000 = 10 s)")
@@ -162,6 +197,7 @@ def main() -> None:
         ("mj_step loop", "bare"): StepLoopTimer(bare, args.steps),
         ("mj_step loop", "plugin"): StepLoopTimer(plugin, args.steps),
         ("mj_step loop", "callback"): StepLoopTimer(bare, args.steps, callback=True),
+        ("kernels", "physics"): KernelTimer(plugin, args.steps),
     }
     us = best_us_per_step(timers, args.steps, args.repeats)
 
@@ -172,13 +208,18 @@ def main() -> None:
           f"best of {args.repeats}, single thread")
     print(f"{'timer':<14}{'configuration':<12}{'us/step':>10}{'/ bare':>10}")
     for (timer, name), v in us.items():
-        print(f"{timer:<14}{name:<12}{v:>10.3f}{v / us[(timer, 'bare')]:>10.3f}")
+        share = v / us[(timer if timer != "kernels" else "rollout", "bare")]
+        print(f"{timer:<14}{name:<12}{v:>10.3f}{share:>10.3f}")
     print(f"callback path reproduces the plugin: max |qpos difference| after {args.steps} steps = {same:.1e}")
     for timer in ("rollout", "mj_step loop"):
         ratio = us[(timer, "plugin")] / us[(timer, "bare")]
         verdict = "met" if ratio <= TARGET else "NOT met"
         print(f"(a) plugin / bare, {timer}: {ratio:.3f}x  (target <= {TARGET}x: {verdict})")
     print(f"(b) dcmotor+LuGre+cogging / bare, rollout: {us[('rollout', 'dcmotor')] / us[('rollout', 'bare')]:.3f}x")
+    physics = us[("kernels", "physics")] / us[("rollout", "bare")]
+    mechanism = us[("rollout", "spring")] / us[("rollout", "bare")] - 1
+    print(f"    of which physics kernels alone: {physics:.3f} of a bare step; plugin mechanism with a "
+          f"linear spring: {mechanism:.3f}")
     print(f"(c) Python callback / bare, mj_step loop: "
           f"{us[('mj_step loop', 'callback')] / us[('mj_step loop', 'bare')]:.3f}x  "
           f"(plugin: {us[('mj_step loop', 'plugin')] / us[('mj_step loop', 'bare')]:.3f}x)")

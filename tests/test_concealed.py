@@ -26,6 +26,7 @@ def test_concealed_effect_is_named_and_nothing_else(effect, tmp_path):
     if effect != "none":
         assert score.named, score
         assert score.nrmse_after < score.nrmse_before, score
+        assert score.nrmse_truth < score.nrmse_before, score  # the truth lacks nothing the base lacks
         assert score.parameter_error is not None and score.parameter_error < 0.5, score
 
 

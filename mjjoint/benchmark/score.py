@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..diagnosis.loop import DiagnoseOptions, diagnose
+from ..identify.fit import evaluate
 from ..identify.structure import Structure
 from ..identify.windows import Measured, Predictor, WindowDesign
 from ..recordings import Recording, read_recording, write_recording
@@ -29,6 +30,9 @@ class Score:
     fitted: float | None
     rollouts: float
     seconds: float
+    # The hidden truth's own held-out NRMSE of `signal` on the same windows: what a perfect
+    # diagnosis would reach (sensor noise and window-start estimates set this floor).
+    nrmse_truth: float | None = None
 
     @property
     def reduction(self) -> float:
@@ -97,4 +101,5 @@ def run_case(effect: str, seed: int, folder: Path, duration: float = 20.0,
                  false_additions=[m for m in diag.missing if m not in found], signal=signal,
                  nrmse_before=diag.initial.nrmse_test[signal], nrmse_after=diag.final.nrmse_test[signal],
                  parameter=CONCEALED[effect][0], truth=case.truth_value(),
-                 fitted=_fitted_value(case, diag.final.structure), rollouts=diag.rollouts, seconds=seconds)
+                 fitted=_fitted_value(case, diag.final.structure), rollouts=diag.rollouts, seconds=seconds,
+                 nrmse_truth=evaluate(predictor, case.truth)[3][signal])  # scoring only, after the run

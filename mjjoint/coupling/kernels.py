@@ -76,9 +76,30 @@ def joint_advance(blk, st, q, wq, theta, wtheta, h):
     if blk[HYST] != 0.0:
         n = blk[GEAR]
         delta = q / n - theta
-        ddelta = (wq / n - wtheta) * h
-        de = engaged(delta, blk[BACKLASH]) - engaged(delta - ddelta, blk[BACKLASH])
-        st[X] = boucwen_step(st[X], de, blk[BW_A], blk[BW_BETA], blk[BW_GAMMA], blk[BW_N])
+        st[X] = hysteresis_step(blk, st[X], delta - (wq / n - wtheta) * h, delta)
+
+
+@njit(cache=True)
+def hysteresis_step(blk, x, delta_from, delta_to):
+    """Bouc-Wen x driven by the deflection moving from ``delta_from`` to ``delta_to`` (past the play)."""
+    de = engaged(delta_to, blk[BACKLASH]) - engaged(delta_from, blk[BACKLASH])
+    return boucwen_step(x, de, blk[BW_A], blk[BW_BETA], blk[BW_GAMMA], blk[BW_N])
+
+
+@njit(cache=True)
+def hysteresis_history(blk, delta, x0):
+    """Bouc-Wen x after each sample of a deflection sequence, starting from ``x0``.
+
+    Bouc-Wen is rate independent: x at any instant follows from the deflection path alone, so
+    a measured deflection gives the hysteresis state along a recording.
+    """
+    x = np.empty(delta.shape[0])
+    xi = x0
+    for i in range(delta.shape[0]):
+        if i > 0:
+            xi = hysteresis_step(blk, xi, delta[i - 1], delta[i])
+        x[i] = xi
+    return x
 
 
 @njit(cache=True)

@@ -4,11 +4,12 @@ Why windows: recordings are taken in closed loop, and an open-loop replay of the
 input drifts away from the measured motion (friction and gravity make free runs unstable
 integrators of small errors), so a whole-record simulation error mostly measures drift.
 Instead every window of ``length`` starts from the measured state (positions measured,
-velocities from a Savitzky-Golay derivative, flexible segments at rest, internal friction and
-hysteresis states set to their steady values for that motion) and predicts ``length`` ahead
-under the measured input. This is multiple shooting without continuity constraints: errors
-cannot accumulate beyond one window, yet each window is long enough (hundreds of ms) for
-dynamics — resonance, lag, hysteresis, play — to show. The first ``warmup`` of every window
+velocities from a Savitzky-Golay derivative, flexible segments at rest, friction states set
+to their steady values for that motion, the Bouc-Wen state run along the measured deflection up
+to the window) and predicts ``length`` ahead under the measured input. This is multiple
+shooting without continuity constraints: errors cannot accumulate beyond one window, yet
+each window is long enough (hundreds of ms) for dynamics — resonance, lag, hysteresis, play —
+to show. The first ``warmup`` of every window
 is left out of the cost while the internal states settle. One evaluation of all windows costs
 the same number of MuJoCo steps as one full-length rollout of the recording.
 
@@ -25,7 +26,7 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 from scipy.signal import savgol_filter
 
-from ..coupling.kernels import joint_traces
+from ..coupling.kernels import hysteresis_history, joint_traces
 from ..coupling.layout import (ASYM, B, BW_A, BW_BETA, BW_GAMMA, BW_N, FC, FKIND, FRICTION_2SEP, FS, HYST,
                                NSTATE, QR, SHAPE, SIGMA, VS, WSIGN, X, Z1, Z2)
 from ..assets.stability import check_model_stability
@@ -86,6 +87,10 @@ class Measured:
     def delta(self) -> np.ndarray | None:
         return None if self.theta is None else self.q / self.gear_ratio - self.theta
 
+    def smooth(self, x: np.ndarray) -> np.ndarray:
+        """``x`` through the Savitzky-Golay filter the velocities come from (value, not derivative)."""
+        return savgol_filter(x, _sg_window(1.0 / self.rate), VELOCITY_ORDER)
+
     @classmethod
     def from_recording(cls, rec, gear_ratio: float, output: bool = True) -> "Measured":
         """Resample ``rec`` on its mean period; ``output=False`` ignores its theta (direct drive)."""
@@ -98,10 +103,15 @@ class Measured:
         cols = {k: None if getattr(rec, k, None) is None else np.interp(grid, t, np.asarray(getattr(rec, k), float))
                 for k in names}
         cols.setdefault("theta", None)
-        win = max(5, int(round(VELOCITY_WINDOW / dt)) | 1)
+        win = _sg_window(dt)
         deriv = lambda x: None if x is None else savgol_filter(x, win, VELOCITY_ORDER, deriv=1, delta=dt)  # noqa: E731
         return cls(t=grid, qd=deriv(cols["q"]), thetad=deriv(cols["theta"]),
                    gear_ratio=float(gear_ratio), rate=1.0 / dt, **cols)
+
+
+def _sg_window(dt: float) -> int:
+    """Savitzky-Golay window [samples] of about VELOCITY_WINDOW, odd, at least 5."""
+    return max(5, int(round(VELOCITY_WINDOW / dt)) | 1)
 
 
 class Predictor:
@@ -226,7 +236,16 @@ class Predictor:
             x0[:, 1 + model.nq + ji.link_dof] = m.thetad[i0]
         # Flexible segments of the link move with the hub at the window start.
         delta = np.zeros(len(i0)) if m.delta is None else m.delta[i0]
-        x0[:, ji.state_start:ji.state_start + NSTATE] = _steady_internal_states(ji.block, m.qd[i0], delta)
+        states = _steady_internal_states(ji.block, m.qd[i0], delta)
+        if ji.block[HYST] != 0.0 and m.delta is not None:
+            # Bouc-Wen x at the window start from the measured deflection path up to it (rate
+            # independent, so the path fixes it); the loading-branch guess can be off by the
+            # whole loop for the entire window. The path is smoothed like the velocities: the
+            # steps of a quantised encoder are tiny reversals that would ratchet x.
+            path = m.smooth(m.delta)
+            x = hysteresis_history(ji.block, path, _steady_internal_states(ji.block, m.qd[:1], path[:1])[0, X])
+            states[:, X] = x[i0]
+        x0[:, ji.state_start:ji.state_start + NSTATE] = states
         return x0
 
     def _controls(self, model, windows, delay: float) -> np.ndarray:
