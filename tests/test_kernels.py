@@ -475,15 +475,32 @@ def test_hysteresis_history(delta, x0, backlash, mu):
     assert all(close(g, w, 1e-3) for g, w in zip(got, want)), (list(got), want)
 
 
-def test_hysteresis_history_of_a_simulated_deflection_is_the_plugins_state():
-    """Bouc-Wen is rate independent: run along a simulation's deflection, sample by step, the
-    history reproduces the hysteresis state the plugin carried (what windowed prediction relies on
-    to start each window on the right branch)."""
+@SETTINGS
+@given(w=st.lists(velocity, min_size=1, max_size=30), h=finite(1e-5, 2e-3), p=twoseps())
+def test_friction_history(w, h, p):
+    blk = pack(JointParams(friction=p), 0, 0, 1, 1)
+    s = [0.01, 0.0, 0.0, 0.0, 0.0]
+    want = []
+    for wi in w:
+        s = list(ref.twosep_step(*s, wi, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym))
+        want.append(s)
+    got = kernels.friction_history(blk, np.asarray(w), h, np.array([0.01, 0.0, 0.0, 0.0, 0.0, 0.0]))
+    assert got.shape == (len(w), NSTATE)
+    for g, r in zip(got, want):
+        assert all(close(a, b, 100.0) for a, b in zip(g[:5], r)), (list(g), r)
+
+
+def test_histories_along_a_simulation_are_the_plugins_states():
+    """Run along a simulation's motor velocity and deflection, one sample per step, the 2SEP and
+    Bouc-Wen histories reproduce the states the plugin carried: what windowed prediction relies
+    on to start every window with the friction's and the gear's memory of the motion."""
     from mjjoint import Chirp, Simulator
     from mjjoint.coupling.layout import X
     sim = Simulator(sample_rate=2000.0)  # one sample per 0.5 ms step
     tr = sim.run(Chirp().sample(2000.0, 1.0))
-    x = tr.states[:, X]
-    assert np.ptp(x) > 1e-4  # the loop is exercised
-    got = kernels.hysteresis_history(sim.joints[0].block, tr.delta, x[0])
-    assert np.max(np.abs(got - x)) < 1e-6 * np.ptp(x), np.max(np.abs(got - x))
+    blk = sim.joints[0].block
+    assert np.ptp(tr.states[:, X]) > 1e-4 and np.sum(np.diff(np.sign(tr.qd)) != 0) > 5  # loops, reversals
+    x = kernels.hysteresis_history(blk, tr.delta, tr.states[0, X])
+    assert np.max(np.abs(x - tr.states[:, X])) < 1e-6 * np.ptp(tr.states[:, X])
+    f = kernels.friction_history(blk, tr.qd[1:], 1.0 / 2000.0, tr.states[0])
+    assert np.allclose(f[:, :X], tr.states[1:, :X], rtol=1e-9, atol=1e-12)

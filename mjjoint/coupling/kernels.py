@@ -65,18 +65,39 @@ def joint_advance(blk, st, q, wq, theta, wtheta, h):
     hinge and slide joints, so the step's increments are the new velocities times h.
     """
     if blk[FKIND] == FRICTION_2SEP:
-        z1, z2, om, qr, ws = twosep_step(st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], wq, h,
-                                         blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA],
-                                         blk[K], blk[B], blk[ASYM])
-        st[Z1] = z1
-        st[Z2] = z2
-        st[OMEGA] = om
-        st[QR] = qr
-        st[WSIGN] = ws
+        friction_step(blk, st, wq, h)
     if blk[HYST] != 0.0:
         n = blk[GEAR]
         delta = q / n - theta
         st[X] = hysteresis_step(blk, st[X], delta - (wq / n - wtheta) * h, delta)
+
+
+@njit(cache=True)
+def friction_step(blk, st, w, h):
+    """Advance the 2SEP states in ``st`` over a step of length h ending at motor velocity w."""
+    z1, z2, om, qr, ws = twosep_step(st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], w, h,
+                                     blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA],
+                                     blk[K], blk[B], blk[ASYM])
+    st[Z1] = z1
+    st[Z2] = z2
+    st[OMEGA] = om
+    st[QR] = qr
+    st[WSIGN] = ws
+
+
+@njit(cache=True)
+def friction_history(blk, w, h, st0):
+    """2SEP states after each sample of a motor velocity sequence (sample period h), from ``st0``.
+
+    The states are the friction's memory of the motion (reversal point, pre-sliding, lag): a
+    measured velocity gives them along a recording, as the plugin's advance would have.
+    """
+    out = np.empty((w.shape[0], st0.shape[0]))
+    st = st0.copy()
+    for i in range(w.shape[0]):
+        friction_step(blk, st, w[i], h)
+        out[i] = st
+    return out
 
 
 @njit(cache=True)

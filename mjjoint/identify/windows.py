@@ -4,9 +4,9 @@ Why windows: recordings are taken in closed loop, and an open-loop replay of the
 input drifts away from the measured motion (friction and gravity make free runs unstable
 integrators of small errors), so a whole-record simulation error mostly measures drift.
 Instead every window of ``length`` starts from the measured state (positions measured,
-velocities from a Savitzky-Golay derivative, flexible segments at rest, friction states set
-to their steady values for that motion, the Bouc-Wen state run along the measured deflection up
-to the window) and predicts ``length`` ahead under the measured input. This is multiple
+velocities from a Savitzky-Golay derivative, flexible segments at rest, the 2SEP states run
+along the measured velocity and the Bouc-Wen state along the measured deflection up to the
+window) and predicts ``length`` ahead under the measured input. This is multiple
 shooting without continuity constraints: errors cannot accumulate beyond one window, yet
 each window is long enough (hundreds of ms) for dynamics — resonance, lag, hysteresis, play —
 to show. The first ``warmup`` of every window
@@ -26,7 +26,7 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 from scipy.signal import savgol_filter
 
-from ..coupling.kernels import hysteresis_history, joint_traces
+from ..coupling.kernels import friction_history, hysteresis_history, joint_traces
 from ..coupling.layout import (ASYM, B, BW_A, BW_BETA, BW_GAMMA, BW_N, FC, FKIND, FRICTION_2SEP, FS, HYST,
                                NSTATE, QR, SHAPE, SIGMA, VS, WSIGN, X, Z1, Z2)
 from ..assets.stability import check_model_stability
@@ -237,6 +237,12 @@ class Predictor:
         # Flexible segments of the link move with the hub at the window start.
         delta = np.zeros(len(i0)) if m.delta is None else m.delta[i0]
         states = _steady_internal_states(ji.block, m.qd[i0], delta)
+        if ji.block[FKIND] == FRICTION_2SEP:
+            # 2SEP's states are its memory of the motion (last reversal, pre-sliding, lag): run
+            # along the measured (smoothed) velocity up to the window, not guessed from its sign.
+            # On a 20 s concealed case this halved the TRUE model's held-out q NRMSE (0.064 -> 0.035).
+            start = _steady_internal_states(ji.block, m.qd[:1], delta[:1])[0]
+            states[:, :X] = friction_history(ji.block, m.qd, 1.0 / m.rate, start)[i0, :X]
         if ji.block[HYST] != 0.0 and m.delta is not None:
             # Bouc-Wen x at the window start from the measured deflection path up to it (rate
             # independent, so the path fixes it); the loading-branch guess can be off by the
