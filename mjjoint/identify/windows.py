@@ -6,12 +6,12 @@ integrators of small errors), so a whole-record simulation error mostly measures
 Instead every window of ``length`` starts from the measured state (positions measured,
 velocities from a Savitzky-Golay derivative, flexible segments at rest, the 2SEP states run
 along the measured velocity and the Bouc-Wen state along the measured deflection up to the
-window) and predicts ``length`` ahead under the measured input. This is multiple
-shooting without continuity constraints: errors cannot accumulate beyond one window, yet
-each window is long enough (hundreds of ms) for dynamics — resonance, lag, hysteresis, play —
-to show. The first ``warmup`` of every window
-is left out of the cost while the internal states settle. One evaluation of all windows costs
-the same number of MuJoCo steps as one full-length rollout of the recording.
+window) and predicts ``length`` ahead under the measured input. This is multiple shooting
+without continuity constraints: errors cannot accumulate beyond one window, yet each window is
+long enough (hundreds of ms) for dynamics — resonance, lag, hysteresis, play — to show. The
+first ``warmup`` of every window is left out of the cost while the internal states settle. One
+evaluation of all windows costs the same number of MuJoCo steps as one full-length rollout of
+the recording.
 
 Held-out data: a seeded random quarter of the windows is kept out of fitting. Random, because
 any periodic pattern can alias with a periodic excitation (a step every 0.5 s and every 4th
