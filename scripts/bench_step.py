@@ -38,6 +38,7 @@ from mjjoint.joint import JointParams
 from mjjoint.physics.ripple import TorqueRipple
 from mjjoint.physics.transmission import Transmission
 from mjjoint.physics.twosep import TwoSEP
+from mjjoint.sim import joint_indices
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 TARGET = 1.05  # plugin / bare, compiled path
@@ -161,7 +162,6 @@ class KernelTimer:
     """The plugin's physics kernels over the plugin model's own trajectory, without MuJoCo."""
 
     def __init__(self, model: mujoco.MjModel, steps: int):
-        from mjjoint.sim import joint_indices
         ji = joint_indices(model)[0]
         timer = RolloutTimer(model, steps)
         timer()
