@@ -14,10 +14,16 @@ One process, single thread. Each configuration is the shipped arm (build_arm def
   kernels   the plugin's physics alone (joint_forces + joint_advance in a compiled loop over
             the plugin run's own trajectory), no MuJoCo: the part of the overhead that is
             physics rather than mechanism, as a share of the bare step.
-Two timers: mujoco.rollout (single thread, outputs preallocated) and a Python loop of
-mj_step; the callback can only run in the latter. Times are this thread's CPU time, so other
-processes on a shared machine do not count; every repeat re-runs all configurations in turn
-(interleaved, so cache and frequency drifts hit all alike) and the best repeat counts.
+Three timers: mujoco.rollout (single thread, outputs preallocated), a Python loop of mj_step
+(the callback can only run there), and state-matched rollouts. Without the plugin the link is
+not coupled to the motor and hangs still, and MuJoCo's own step costs less at rest than along
+a swinging trajectory (the "bare along the trajectory" line shows by how much). So the
+state-matched timer rolls out every configuration from the same states, taken every
+``--segment`` steps along the plugin run's trajectory, for ``--segment`` steps each: the same
+MJCF and the same motion with and without the plugin, which isolates what the plugin costs.
+Times are this thread's CPU time, so other processes on a shared machine do not count; every
+repeat re-runs all configurations in turn (interleaved, so cache and frequency drifts hit all
+alike) and the best repeat counts.
 
     python scripts/bench_step.py --steps 20000 --repeats 7
 """
@@ -101,6 +107,46 @@ class RolloutTimer:
         return time.thread_time() - t
 
 
+class MatchedTimer:
+    """Rollouts of ``segment`` steps from states along a reference run, one batch in one thread.
+
+    ``reference`` is a RolloutTimer that has run; its states (and controls) are restarted every
+    ``segment`` steps. ``model`` may lack the reference's plugin: time, qpos, qvel and act carry
+    over (deleting a plugin keeps them), plugin states where the model has them.
+    """
+
+    def __init__(self, model: mujoco.MjModel, reference: "RolloutTimer", segment: int):
+        ref = reference.model
+        assert (model.nq, model.nv, model.na, model.nu) == (ref.nq, ref.nv, ref.na, ref.nu)
+        steps = reference.ctrl.shape[1] // segment * segment
+        starts = np.concatenate([reference.x0, reference.state[0, segment - 1:steps - 1:segment]])
+        self.model, self.data, self.segment = model, mujoco.MjData(model), segment
+        src, dst = mujoco.MjData(ref), self.data
+        self.x0 = np.empty((len(starts), mujoco.mj_stateSize(model, FULL)))
+        for i, x in enumerate(starts):
+            mujoco.mj_setState(ref, src, x, FULL)
+            dst.time, dst.qpos[:], dst.qvel[:], dst.act[:] = src.time, src.qpos, src.qvel, src.act
+            if model.nplugin:
+                dst.plugin_state[:] = src.plugin_state
+            mujoco.mj_getState(model, dst, self.x0[i], FULL)
+        self.ctrl = reference.ctrl[0, :steps].reshape(len(starts), segment, -1)
+        self.state = np.empty((len(starts), segment, self.x0.shape[1]))
+        self.sensor = np.empty((len(starts), segment, model.nsensordata))
+
+    def __call__(self) -> float:
+        t = time.thread_time()
+        rollout.rollout([self.model] * len(self.x0), [self.data], self.x0, self.ctrl, skip_checks=True,
+                        nstep=self.segment, state=self.state, sensordata=self.sensor)
+        return time.thread_time() - t
+
+
+def state_matched(models: dict, reference: mujoco.MjModel, steps: int, segment: int) -> dict:
+    """MatchedTimers of ``models`` (name -> model) along ``reference``'s own rollout."""
+    run = RolloutTimer(reference, steps)
+    run()
+    return {name: MatchedTimer(m, run, segment) for name, m in models.items()}
+
+
 class StepLoopTimer:
     """mj_step in a Python loop; with ``callback``, the joint physics run from Python."""
 
@@ -182,6 +228,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=20000, help="steps per timed run (default 20000 = 10 s)")
     ap.add_argument("--repeats", type=int, default=7, help="timed runs per configuration; the best counts")
+    ap.add_argument("--segment", type=int, default=20,
+                    help="steps per state-matched rollout (default 20 = 10 ms)")
     args = ap.parse_args()
 
     plugin, bare, dc = load_model(build_arm()), bare_spec().compile(), dcmotor_model()
@@ -199,6 +247,8 @@ def main() -> None:
         ("mj_step loop", "callback"): StepLoopTimer(bare, args.steps, callback=True),
         ("kernels", "physics"): KernelTimer(plugin, args.steps),
     }
+    matched = state_matched({"bare": bare, "plugin": plugin, "spring": spring}, plugin, args.steps, args.segment)
+    timers.update({("state-matched", name): t for name, t in matched.items()})
     us = best_us_per_step(timers, args.steps, args.repeats)
 
     # The Python path must be the same physics as the plugin, or the comparison means nothing.
@@ -208,16 +258,18 @@ def main() -> None:
           f"best of {args.repeats}, single thread")
     print(f"{'timer':<14}{'configuration':<12}{'us/step':>10}{'/ bare':>10}")
     for (timer, name), v in us.items():
-        share = v / us[(timer if timer != "kernels" else "rollout", "bare")]
+        share = v / us[(timer if timer != "kernels" else "state-matched", "bare")]
         print(f"{timer:<14}{name:<12}{v:>10.3f}{share:>10.3f}")
     print(f"callback path reproduces the plugin: max |qpos difference| after {args.steps} steps = {same:.1e}")
-    for timer in ("rollout", "mj_step loop"):
+    for timer in ("state-matched", "rollout", "mj_step loop"):
         ratio = us[(timer, "plugin")] / us[(timer, "bare")]
         verdict = "met" if ratio <= TARGET else "NOT met"
         print(f"(a) plugin / bare, {timer}: {ratio:.3f}x  (target <= {TARGET}x: {verdict})")
+    print(f"    bare along the plugin's trajectory / bare from rest: "
+          f"{us[('state-matched', 'bare')] / us[('rollout', 'bare')]:.3f}x (MuJoCo's own cost of the motion)")
     print(f"(b) dcmotor+LuGre+cogging / bare, rollout: {us[('rollout', 'dcmotor')] / us[('rollout', 'bare')]:.3f}x")
-    physics = us[("kernels", "physics")] / us[("rollout", "bare")]
-    mechanism = us[("rollout", "spring")] / us[("rollout", "bare")] - 1
+    physics = us[("kernels", "physics")] / us[("state-matched", "bare")]
+    mechanism = us[("state-matched", "spring")] / us[("state-matched", "bare")] - 1
     print(f"    of which physics kernels alone: {physics:.3f} of a bare step; plugin mechanism with a "
           f"linear spring: {mechanism:.3f}")
     print(f"(c) Python callback / bare, mj_step loop: "

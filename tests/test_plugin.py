@@ -122,6 +122,29 @@ def test_unregistered_model_fails_loudly_not_silently(model):
         registry.keys[:] = saved
 
 
+def test_model_at_a_recycled_address_with_another_config_fails_loudly(model):
+    """Rows keyed by this model's address whose config bytes differ (a freed model's rows, the
+    address reused by a model never registered) are never used: NaN, not old parameters."""
+    from mjjoint.coupling import registry
+    data = mujoco.MjData(model)
+    x0 = np.empty(mujoco.mj_stateSize(model, FULL))
+    mujoco.mj_getState(model, data, x0, FULL)
+    ctrl = np.full((1, 5, 1), 0.3)
+    good, _ = rollout.rollout(model, data, x0[None], ctrl)
+    assert np.isfinite(good).all()
+    rows = np.flatnonzero(registry.keys[:, registry.K_MODEL] == model._address)
+    assert rows.size > 0
+    saved = registry.configs.copy()
+    try:
+        registry.configs[rows, 0] ^= np.uint64(1)  # as if parsed from another config at this address
+        state, _ = rollout.rollout(model, data, x0[None], ctrl)
+        assert np.isnan(state).any() or data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
+    finally:
+        registry.configs[:] = saved
+    again, _ = rollout.rollout(model, mujoco.MjData(model), x0[None], ctrl)
+    np.testing.assert_array_equal(again, good)
+
+
 def test_threaded_rollout_of_two_parameter_sets_equals_sequential_runs():
     soft = load_model(build_arm(joint=JointParams(transmission=Transmission(k1=3e3))))
     sticky = load_model(build_arm(joint=JointParams(friction=TwoSEP(fc=0.15, fs=0.2))))

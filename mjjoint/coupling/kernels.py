@@ -7,9 +7,9 @@ energy, tests) evaluate the very functions the plugin runs.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from ..physics.boucwen import boucwen_step
+from ..physics.jit import kernel
 from ..physics.load import bearing_friction
 from ..physics.ripple import ripple_torque
 from ..physics.stribeck import static_friction
@@ -21,7 +21,7 @@ from .layout import (ASYM, B, BACKLASH, BW_A, BW_BETA, BW_GAMMA, BW_N, DAMP, FC,
                      SHAPE, SIGMA, VEPS, VS, WSIGN, X, Z1, Z2)
 
 
-@njit(cache=True)
+@kernel
 def motor_friction(blk, st, w, hj):
     """Friction torque opposing the motor (2SEP, static map or none).
 
@@ -36,7 +36,7 @@ def motor_friction(blk, st, w, hj):
     return 0.0
 
 
-@njit(cache=True)
+@kernel
 def transmitted(blk, st, q, wq, theta, wtheta):
     """Transmission torque T (Eq. 18) from motor and link positions and velocities."""
     n = blk[GEAR]
@@ -44,7 +44,7 @@ def transmitted(blk, st, q, wq, theta, wtheta):
                                blk[K1], blk[K2], blk[K3], blk[DAMP], blk[BACKLASH])
 
 
-@njit(cache=True)
+@kernel
 def joint_forces(blk, st, q, wq, theta, wtheta, hj):
     """Generalised forces (motor, link) of the joint physics: -T/N - F + ripple, T - F_L."""
     t = transmitted(blk, st, q, wq, theta, wtheta)
@@ -57,7 +57,7 @@ def joint_forces(blk, st, q, wq, theta, wtheta, hj):
     return fm, fl
 
 
-@njit(cache=True)
+@kernel
 def joint_advance(blk, st, q, wq, theta, wtheta, h):
     """Advance the internal states over a step that ended at (q, theta) with velocities (wq, wtheta).
 
@@ -72,7 +72,7 @@ def joint_advance(blk, st, q, wq, theta, wtheta, h):
         st[X] = hysteresis_step(blk, st[X], delta - (wq / n - wtheta) * h, delta)
 
 
-@njit(cache=True)
+@kernel
 def friction_step(blk, st, w, h):
     """Advance the 2SEP states in ``st`` over a step of length h ending at motor velocity w."""
     z1, z2, om, qr, ws = twosep_step(st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], w, h,
@@ -85,7 +85,7 @@ def friction_step(blk, st, w, h):
     st[WSIGN] = ws
 
 
-@njit(cache=True)
+@kernel
 def friction_history(blk, w, h, st0):
     """2SEP states after each sample of a motor velocity sequence (sample period h), from ``st0``.
 
@@ -100,14 +100,14 @@ def friction_history(blk, w, h, st0):
     return out
 
 
-@njit(cache=True)
+@kernel
 def hysteresis_step(blk, x, delta_from, delta_to):
     """Bouc-Wen x driven by the deflection moving from ``delta_from`` to ``delta_to`` (past the play)."""
     de = engaged(delta_to, blk[BACKLASH]) - engaged(delta_from, blk[BACKLASH])
     return boucwen_step(x, de, blk[BW_A], blk[BW_BETA], blk[BW_GAMMA], blk[BW_N])
 
 
-@njit(cache=True)
+@kernel
 def hysteresis_history(blk, delta, x0):
     """Bouc-Wen x after each sample of a deflection sequence, starting from ``x0``.
 
@@ -123,7 +123,7 @@ def hysteresis_history(blk, delta, x0):
     return x
 
 
-@njit(cache=True)
+@kernel
 def joint_traces(blk, states, q, wq, theta, wtheta, hj):
     """Transmission torque, motor friction and load friction along a trajectory (``hj``: as in
     ``motor_friction``)."""

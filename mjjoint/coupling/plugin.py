@@ -29,7 +29,7 @@ from ..joint import GROUND, JointParams, config_keys
 from . import abi, registry
 from .kernels import joint_advance, joint_forces
 from .layout import BLOCK_LEN, LD, LQ, MD, MQ, NSTATE, pack
-from .pointers import _addr, f64_array, f64_at, f64_ptr_array, field, i32_array, u64_array
+from .pointers import _addr, f64_array, f64_at, f64_ptr, f64_ptr_array, field, i32_array, u64_array
 from .registry import find_row, row_matches
 
 PLUGIN_NAME = "mjjoint.joint"
@@ -116,14 +116,16 @@ def register_model(model_or_address, instance: int | None = None) -> list[int]:
     for i in instances:
         attr, length = _attr_span(m_addr, i)
         with _lock:
-            r = find_row(registry.keys, m_addr, attr, i)
+            r = find_row(registry.KEYS_ADDRESS, registry.CONFIGS_ADDRESS, m_addr, attr, i)
             if r < 0:
                 blk = block_for(m_addr, i)
+                words = registry.config_words(attr, length)
                 r = _next_row
                 _next_row = (_next_row + 1) % registry.CAPACITY
                 registry.keys[r] = 0  # invalidate before the parameters change
                 registry.params[r] = blk
-                registry.keys[r] = (m_addr, attr, length, registry.checksum(attr, length), i)
+                registry.configs[r] = words
+                registry.keys[r] = (m_addr, attr, length, i)
         rows.append(int(r))
     return rows
 
@@ -145,30 +147,32 @@ def _compile_hot_callbacks(off: abi.Offsets):
     d_state, d_data = off.d_plugin_state, off.d_plugin_data
     m_stateadr, m_dt, m_invw = off.m_plugin_stateadr, off.m_timestep, off.m_dof_invweight0
     m_attr, m_attradr = off.m_plugin_attr, off.m_plugin_attradr
-    keys_addr, params_addr, cap = registry.KEYS_ADDRESS, registry.PARAMS_ADDRESS, registry.CAPACITY
+    keys_addr, configs_addr = registry.KEYS_ADDRESS, registry.CONFIGS_ADDRESS
+    params_addr, cap = registry.PARAMS_ADDRESS, registry.CAPACITY
 
     @njit(inline="always")
     def lookup(m, d, instance):
         """This instance's parameter row for model m (cached in d->plugin_data), or -1."""
-        table = u64_array(keys_addr, cap * registry.NKEY).reshape((cap, registry.NKEY))
         slot = u64_array(field(d, d_data), instance + 1)
         attr = field(m, m_attr) + i32_array(field(m, m_attradr), instance + 1)[instance]
         r = int(slot[instance])
         model = _addr(m)
-        if r >= cap or not row_matches(table, r, model, attr, instance):
-            r = find_row(table, model, attr, instance)
+        if r >= cap or not row_matches(keys_addr, configs_addr, r, model, attr, instance):
+            r = find_row(keys_addr, configs_addr, model, attr, instance)
             if r >= 0:
                 slot[instance] = r
         return r
 
     @njit(inline="always")
     def joint_state(m, d, instance, r):
-        blk = f64_array(params_addr + 8 * BLOCK_LEN * r, BLOCK_LEN)
+        # Raw pointers, not arrays: the kernels take either, and pointers leave numba nothing
+        # to reference-count on the way in and out of each kernel call.
+        blk = f64_ptr(params_addr + 8 * BLOCK_LEN * r)
         adr = i32_array(field(m, m_stateadr), instance + 1)[instance]
-        st = f64_array(field(d, d_state) + 8 * adr, NSTATE)
+        st = f64_ptr(field(d, d_state) + 8 * adr)
         mq, md, lq, ld = int(blk[MQ]), int(blk[MD]), int(blk[LQ]), int(blk[LD])
-        qpos = f64_array(field(d, d_qpos), max(mq, lq) + 1)
-        qvel = f64_array(field(d, d_qvel), max(md, ld) + 1)
+        qpos = f64_ptr(field(d, d_qpos))
+        qvel = f64_ptr(field(d, d_qvel))
         q = qpos[mq] if mq >= 0 else 0.0
         th = qpos[lq] if lq >= 0 else 0.0
         wq = qvel[md] if md >= 0 else 0.0
@@ -195,9 +199,9 @@ def _compile_hot_callbacks(off: abi.Offsets):
             return
         blk, st, q, wq, th, wth = joint_state(m, d, instance, r)
         md, ld = int(blk[MD]), int(blk[LD])
-        hj = f64_at(m, m_dt) * f64_array(field(m, m_invw), md + 1)[md] if md >= 0 else 0.0
+        hj = f64_at(m, m_dt) * f64_ptr(field(m, m_invw))[md] if md >= 0 else 0.0
         fm, fl = joint_forces(blk, st, q, wq, th, wth, hj)
-        frc = f64_array(field(d, d_frc), max(md, ld) + 1)
+        frc = f64_ptr(field(d, d_frc))
         if md >= 0:
             frc[md] += fm
         if ld >= 0:

@@ -44,6 +44,12 @@ def i32_array(address, n):
 
 
 @njit(inline="always")
+def f64_ptr(address):
+    """A double* at ``address``: indexable like an array, with no array object behind it."""
+    return _as_f64(address)
+
+
+@njit(inline="always")
 def f64_at(struct, offset):
     """A double stored inline at byte ``offset`` of a struct given as void*."""
     return carray(_as_f64(_addr(struct) + offset), 1)[0]

@@ -2,11 +2,17 @@
 
 ``mujoco.rollout`` pairs any thread's mjData with any model of the batch, so parameters
 cannot live in per-mjData memory: a row holds one plugin instance's parameter block, keyed by
-(mjModel address, address and length of the instance's config bytes in that model, a checksum
-of those bytes, instance). Each mjData's ``plugin_data`` slot only caches a row number, which
-the callbacks re-validate every step (a few word reads); a stale or foreign row sends them to
-``find_row``. A model freed and another compiled at the same address with a different config
-fails the checksum, so recycled addresses never pick up old parameters.
+(mjModel address, address of the instance's config bytes in that model, instance) together
+with a copy of those config bytes. Each mjData's ``plugin_data`` slot only caches a row
+number, which the callbacks re-validate every step: the key words, then the live config bytes
+against the row's copy. A model freed and another compiled at the same address with a
+different config therefore never picks up old parameters, even if it was never registered
+(it fails loudly instead).
+
+The per-step check is written for the hot path: plain loads through raw addresses (no array
+objects, so nothing for numba to reference-count) and a branch-free OR over the config words,
+which LLVM vectorises; a hash over the same bytes is a chain of dependent multiplies and cost
+2 % of a MuJoCo step (``scripts/bench_step.py``).
 """
 from __future__ import annotations
 
@@ -18,41 +24,51 @@ from .pointers import u64_array
 
 CAPACITY = 4096
 # key columns
-K_MODEL, K_ATTR, K_LEN, K_SUM, K_INSTANCE = range(5)
-NKEY = 5
+K_MODEL, K_ATTR, K_LEN, K_INSTANCE = range(4)
+NKEY = 4
+# An instance's config (its values, NUL-separated) is 150-300 bytes for the shipped models.
+CONFIG_BYTES = 1024
+CONFIG_WORDS = CONFIG_BYTES // 8
 
 keys = np.zeros((CAPACITY, NKEY), dtype=np.uint64)
+configs = np.zeros((CAPACITY, CONFIG_WORDS), dtype=np.uint64)
 params = np.zeros((CAPACITY, BLOCK_LEN))
 KEYS_ADDRESS = keys.ctypes.data
+CONFIGS_ADDRESS = configs.ctypes.data
 PARAMS_ADDRESS = params.ctypes.data
 
 
-@njit(cache=True)
-def checksum(address, nbytes):
-    """Order-sensitive sum of the config bytes read 8 at a time (tail bytes one by one)."""
-    nwords = nbytes // 8
-    words = u64_array(address, nwords) if nwords > 0 else u64_array(address, 1)[:0]
-    h = np.uint64(1469598103934665603)
-    for i in range(nwords):
-        h = (h ^ words[i]) * np.uint64(1099511628211)
-    tail = u64_array(address + 8 * nwords, 1)[0] if nbytes % 8 else np.uint64(0)
-    if nbytes % 8:
-        tail = tail & ((np.uint64(1) << np.uint64(8 * (nbytes % 8))) - np.uint64(1))
-        h = (h ^ tail) * np.uint64(1099511628211)
-    return h
+def config_words(address: int, nbytes: int) -> np.ndarray:
+    """The config bytes at ``address`` as zero-padded words, the form a row keeps."""
+    if nbytes > CONFIG_BYTES:
+        raise ValueError(f"mjjoint.joint config of {nbytes} bytes; at most {CONFIG_BYTES} are supported")
+    words = np.zeros(CONFIG_WORDS, dtype=np.uint64)
+    words.view(np.uint8)[:nbytes] = np.ctypeslib.as_array((np.ctypeslib.ctypes.c_uint8 * nbytes).from_address(address))
+    return words
+
+
+@njit(cache=True, inline="always")
+def row_matches(keys_addr, configs_addr, r, model, attr, instance):
+    """Whether row r holds this model instance: key words equal, config bytes unchanged."""
+    key = u64_array(keys_addr + 8 * NKEY * r, NKEY)
+    if key[K_MODEL] != model or key[K_ATTR] != attr or key[K_INSTANCE] != instance:
+        return False
+    nbytes = key[K_LEN]
+    nwords = (nbytes + 7) // 8
+    live = u64_array(attr, nwords)  # the last word may read up to 7 bytes past the config
+    kept = u64_array(configs_addr + 8 * CONFIG_WORDS * r, nwords)
+    diff = np.uint64(0)
+    for i in range(nwords - 1):
+        diff |= live[i] ^ kept[i]
+    tail = nbytes - 8 * (nwords - 1)  # 1..8 bytes of the last word belong to the config
+    mask = np.uint64(0xFFFFFFFFFFFFFFFF) >> np.uint64(64 - 8 * tail)
+    return (diff | ((live[nwords - 1] ^ kept[nwords - 1]) & mask)) == 0
 
 
 @njit(cache=True)
-def row_matches(table, r, model, attr, instance):
-    return (table[r, K_MODEL] == model and table[r, K_ATTR] == attr
-            and table[r, K_INSTANCE] == instance
-            and checksum(attr, table[r, K_LEN]) == table[r, K_SUM])
-
-
-@njit(cache=True)
-def find_row(table, model, attr, instance):
+def find_row(keys_addr, configs_addr, model, attr, instance):
     """Row holding this model instance's parameters, or -1 if it was never registered."""
-    for r in range(table.shape[0]):
-        if table[r, K_MODEL] == model and row_matches(table, r, model, attr, instance):
+    for r in range(CAPACITY):
+        if row_matches(keys_addr, configs_addr, r, model, attr, instance):
             return r
     return -1

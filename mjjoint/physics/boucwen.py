@@ -13,12 +13,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from numba import njit
-
 from ..params import check
+from .jit import kernel
 
 
-@njit(cache=True)
+@kernel
 def restoring_torque(delta: float, x: float, mu: float, k1: float, k2: float, k3: float) -> float:
     """Gamma(delta, x) of Eq. 16 for the cubic stiffness polynomial k1, k2, k3."""
     elastic = k1 * delta + k2 * delta * abs(delta) + k3 * delta * delta * delta
@@ -26,7 +25,7 @@ def restoring_torque(delta: float, x: float, mu: float, k1: float, k2: float, k3
     return mu * elastic + (1.0 - mu) * plastic
 
 
-@njit(cache=True)
+@kernel
 def _boucwen_newton(x: float, dd: float, a: float, beta: float, gamma: float, n: float) -> float:
     """One Newton step of backward Euler x' = x + dd g(x') over a small increment dd."""
     sd = 1.0 if dd > 0.0 else -1.0
@@ -42,7 +41,7 @@ def _boucwen_newton(x: float, dd: float, a: float, beta: float, gamma: float, n:
     return x + dd * g / (1.0 - dd * dg)
 
 
-@njit(cache=True)
+@kernel
 def boucwen_step(x: float, ddelta: float, a: float, beta: float, gamma: float, n: float) -> float:
     """Advance the Bouc-Wen state x over a deflection increment ``ddelta`` (Eq. 17).
 

@@ -8,12 +8,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from numba import njit
-
 from ..params import check
+from .jit import kernel
 
 
-@njit(cache=True)
+@kernel
 def bearing_friction(w: float, fc: float, viscous: float, v_eps: float) -> float:
     """F_c tanh(w / v_eps) + d_f w: the smoothed sign keeps the ODE Lipschitz at w = 0."""
     return fc * math.tanh(w / v_eps) + viscous * w

@@ -8,12 +8,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from numba import njit
-
 from ..params import check
+from .jit import kernel
 
 
-@njit(cache=True)
+@kernel
 def ripple_torque(q: float, amplitude: float, harmonic: float, phase: float) -> float:
     return amplitude * math.sin(harmonic * q + phase)
 

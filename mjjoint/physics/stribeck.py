@@ -9,21 +9,21 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from numba import njit
-
 from ..params import check
+from .jit import kernel
 
 
-@njit(cache=True)
+@kernel
 def stribeck_level(w: float, fc: float, fs: float, vs: float, shape: float) -> float:
     """Magnitude of the Stribeck curve: Fc + (Fs - Fc) exp(-|w/Vs|^shape) (Eq. 15 without sign)."""
     r = abs(w / vs)
     # the common shapes 1 and 2 without pow(): this runs every simulation step
     e = r if shape == 1.0 else (r * r if shape == 2.0 else r ** shape)
-    return fc + (fs - fc) * math.exp(-e)
+    # past e = 40 the Stribeck bump, (Fs - Fc) 4e-18, is below the Coulomb level's last bit
+    return fc + (fs - fc) * math.exp(-e) if e < 40.0 else fc
 
 
-@njit(cache=True)
+@kernel
 def steady_state(w: float, fc: float, fs: float, vs: float, shape: float, sigma: float,
                  asym: float) -> float:
     """S(w) = s(w) + sigma w (Eqs. 14-15); ``asym`` shifts both levels in the direction of motion."""
@@ -31,7 +31,7 @@ def steady_state(w: float, fc: float, fs: float, vs: float, shape: float, sigma:
     return sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * w
 
 
-@njit(cache=True)
+@kernel
 def static_friction(w: float, fc: float, fs: float, vs: float, shape: float, sigma: float,
                     asym: float, v_eps: float) -> float:
     """Regularised static map: tanh(w/v_eps) replaces sgn(w) in S(w)."""

@@ -10,13 +10,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from numba import njit
-
 from ..params import check
 from .boucwen import BoucWen, restoring_torque
+from .jit import kernel
 
 
-@njit(cache=True)
+@kernel
 def engaged(delta: float, backlash: float) -> float:
     """Deflection beyond a centred dead zone of total width ``backlash``."""
     half = 0.5 * backlash
@@ -27,7 +26,7 @@ def engaged(delta: float, backlash: float) -> float:
     return 0.0
 
 
-@njit(cache=True)
+@kernel
 def transmission_torque(delta, ddelta, x, mu, k1, k2, k3, damping, backlash):
     """T = Gamma(delta_e, x) + D delta_e' (Eq. 18) with the backlash dead zone applied."""
     de = engaged(delta, backlash)
