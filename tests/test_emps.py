@@ -10,7 +10,7 @@ import pytest
 
 from mjjoint.assets.drive import DriveSpec
 from mjjoint.datasets.emps import (ESTIMATION, PUBLISHED, VALIDATION, equivalent_parameters,
-                                   idim_least_squares, idim_relative_error, read_emps)
+                                   idim_least_squares, idim_relative_error, read_emps, sliding_friction)
 from mjjoint.datasets.paths import data_root
 from mjjoint.identify.fit import fit
 from mjjoint.identify.structure import Structure
@@ -48,23 +48,55 @@ def test_the_authors_procedure_reproduces_their_published_numbers(estimation):
     assert idim_relative_error(validation, PUBLISHED.as_vector()) == pytest.approx(5.98, abs=0.01)
 
 
-@needs_data
-def test_output_error_fit_lands_next_to_the_published_inverse_model(estimation):
-    """Fitting the published structure by windowed prediction (not by inverse dynamics) gives the
-    same mass within 5 % and Fc, Fv, offset within 10 % (measured: -1, +6, -5, +9 %: short of the
-    issue's 5 %, see docs/datasets.md; the two costs spread the remaining model error
-    differently), and the authors' own force error within 0.3 points of theirs, which is the
-    least-squares optimum of that very error, on both files (measured: 4.33 vs 4.08 % and 5.87
-    vs 5.98 %)."""
+@pytest.fixture(scope="module")
+def our_fit(estimation):
+    """(M, Fv, Fc, offset) of the published structure fitted by windowed prediction."""
     pred = Predictor(Measured.from_recording(estimation.recording, 1.0, output=False), WindowDesign())
     start = Structure.create(("coulomb_friction", "viscous_friction", "input_offset"), DriveSpec(), 1.0)
-    ours = equivalent_parameters(fit(pred, start, max_iter=20).structure)
-    pub = PUBLISHED.as_vector()
+    return equivalent_parameters(fit(pred, start, max_iter=20).structure)
+
+
+@needs_data
+def test_output_error_fit_lands_next_to_the_published_inverse_model(estimation, our_fit):
+    """Fitting the published structure by windowed prediction (not by inverse dynamics) gives the
+    same mass within 5 % and Fc, Fv, offset within 10 % (measured: -1, +6, -5, -9 %: short of the
+    issue's 5 % because the two costs weight a model error differently, see the next tests and
+    docs/datasets.md), and the authors' own force error within 0.3 points of theirs, which is the
+    least-squares optimum of that very error, on both files (measured: 4.33 vs 4.08 % and 5.87
+    vs 5.98 %)."""
+    ours, pub = our_fit, PUBLISHED.as_vector()
     assert ours[0] == pytest.approx(pub[0], rel=0.05)
     assert ours[1:] == pytest.approx(pub[1:], rel=0.10)
     assert idim_relative_error(estimation.recording, ours) < PUBLISHED.error_estimation + 0.3
     validation = read_emps(DATA / VALIDATION).recording
     assert idim_relative_error(validation, ours) < PUBLISHED.error_validation + 0.3
+
+
+@needs_data
+def test_steady_sliding_friction_is_steeper_backwards_on_both_files(estimation):
+    """The real friction is not the symmetric Coulomb-viscous line both fits assume: on the
+    constant-speed plateaus its slope is ~155-165 N s/m forwards and ~230-240 N s/m backwards,
+    with equal levels at zero speed. So a symmetric model's Fv and offset depend on how a cost
+    weights the speeds (offset ~ -(slope difference / 2) x typical speed)."""
+    for rec in (estimation.recording, read_emps(DATA / VALIDATION).recording):
+        fric = sliding_friction(rec, PUBLISHED.mass)
+        (up, level_up), (down, level_down) = fric[1], fric[-1]
+        assert down > 1.3 * up > 0
+        assert level_up > 15.0 and abs(level_up + level_down) < 1.0   # Coulomb levels: equal, opposite
+
+
+@needs_data
+def test_the_gap_to_the_published_fit_is_the_slow_samples(estimation, our_fit):
+    """Why ours and IDIM-LS differ: near the reversals (|v| < 3 cm/s, 9 % of the decimated
+    samples) the measured friction lies well below the Coulomb-viscous line; the force cost
+    bends Fc down and Fv up to chase it, the windowed position cost barely sees it (a short
+    force error moves the carriage little). Drop those samples from the authors' own least
+    squares and every parameter moves towards ours, to within 3 % (measured: -0.8, -1.1, +1.8,
+    -1.6 %). Not an artefact of our plant (sign regularisation, timestep, window start)."""
+    full = idim_least_squares(estimation.recording)
+    sliding = idim_least_squares(estimation.recording, min_speed=0.03)
+    assert our_fit == pytest.approx(sliding, rel=0.03)
+    assert np.all(np.abs(our_fit - sliding)[1:] < np.abs(our_fit - full)[1:])
 
 
 def test_a_file_that_is_not_emps_fails_in_one_line(tmp_path):

@@ -106,10 +106,41 @@ def idim_relative_error(rec: Recording, params: np.ndarray) -> float:
     return float(100.0 * np.linalg.norm(f - x @ np.asarray(params, float)) / np.linalg.norm(f))
 
 
-def idim_least_squares(rec: Recording) -> np.ndarray:
-    """The IDIM-LS estimate (M, Fv, Fc, offset): the published method, for reference."""
+def idim_least_squares(rec: Recording, min_speed: float = 0.0) -> np.ndarray:
+    """The IDIM-LS estimate (M, Fv, Fc, offset): the published method, for reference.
+
+    ``min_speed`` > 0 [m/s] drops the decimated samples slower than it. Not the published
+    method: a diagnostic of how much its parameters owe to the slow approaches to the
+    reversals, where the measured friction lies below the Coulomb-plus-viscous line
+    (``sliding_friction``; docs/datasets.md).
+    """
     x, f = idim_regressors(rec)
-    return np.linalg.lstsq(x, f, rcond=None)[0]
+    keep = np.abs(x[:, 1]) >= min_speed
+    return np.linalg.lstsq(x[keep], f[keep], rcond=None)[0]
+
+
+def sliding_friction(rec: Recording, mass: float, min_speed: float = 0.03,
+                     max_accel: float = 0.05) -> dict[int, tuple[float, float]]:
+    """Per direction (+1, -1): (slope [N s/m], level at zero speed [N]) of the friction force.
+
+    The friction force is F - M q'' on the authors' decimated regressors, taken where the
+    carriage slides steadily (|q'| >= ``min_speed``, |q''| <= ``max_accel``: the EMPS's
+    constant-speed plateaus, where M barely matters), and fitted by a straight line in q'
+    separately for each direction. A symmetric Coulomb-viscous model has equal slopes and
+    opposite levels.
+    """
+    x, f = idim_regressors(rec)
+    acc, v = x[:, 0], x[:, 1]
+    friction = f - mass * acc
+    steady = (np.abs(v) >= min_speed) & (np.abs(acc) <= max_accel)
+    out = {}
+    for sign in (1, -1):
+        m = steady & (np.sign(v) == sign)
+        if m.sum() < 2:
+            raise ValueError(f"no steady sliding in direction {sign:+d} (|v| >= {min_speed}, |a| <= {max_accel})")
+        slope, level = np.polyfit(v[m], friction[m], 1)
+        out[sign] = (float(slope), float(level))
+    return out
 
 
 def published_structure(nominal):
