@@ -53,9 +53,13 @@ def boucwen_step(x: float, ddelta: float, a: float, beta: float, gamma: float, n
         return x
     s = beta + gamma
     pieces = 1
-    if s > 0.0:
+    # n = 1: x_u = A/s, so one piece suffices while |ddelta| s < 0.1, the plugin's every step
+    # (the test below without its three divisions).
+    if s > 0.0 and not (n == 1.0 and abs(ddelta) * s < 0.1):
         xu = a / s if n == 1.0 else (a / s) ** (1.0 / n)
         pieces = min(int(abs(ddelta) * a / (0.1 * xu)) + 1, 10000)
+    if pieces == 1:
+        return _boucwen_newton(x, ddelta, a, beta, gamma, n)
     dd = ddelta / pieces
     for _ in range(pieces):
         x = _boucwen_newton(x, dd, a, beta, gamma, n)

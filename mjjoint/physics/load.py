@@ -5,17 +5,17 @@ the MJCF bodies (link mass, lever, flexible segments) through MuJoCo's multibody
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from ..params import check
 from .jit import kernel
+from .stribeck import smooth_sign
 
 
 @kernel
 def bearing_friction(w: float, fc: float, viscous: float, v_eps: float) -> float:
     """F_c tanh(w / v_eps) + d_f w: the smoothed sign keeps the ODE Lipschitz at w = 0."""
-    return fc * math.tanh(w / v_eps) + viscous * w
+    return fc * smooth_sign(w, v_eps) + viscous * w
 
 
 @dataclass(frozen=True)
