@@ -42,11 +42,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # scripts/ is not a package
 from bench_step import (  # the shared measurement
+    SEGMENT,
     TARGET,
     RolloutTimer,
     StepLoopTimer,
     bare_spec,
     best_us_per_step,
+    state_matched,
 )
 
 from mjjoint.assets import build_arm, load_model
@@ -136,9 +138,11 @@ def per_step(sizes: Sizes) -> dict:
               ("rollout", "bare"): RolloutTimer(bare, sizes.steps),
               ("mj_step loop", "plugin"): StepLoopTimer(plugin, sizes.steps),
               ("mj_step loop", "bare"): StepLoopTimer(bare, sizes.steps)}
+    matched = state_matched({"plugin": plugin, "bare": bare}, plugin, sizes.steps, SEGMENT)
+    timers.update({("state-matched", k): t for k, t in matched.items()})
     us = best_us_per_step(timers, sizes.steps, sizes.repeats)
     out = {}
-    for timer in ("rollout", "mj_step loop"):
+    for timer in ("state-matched", "rollout", "mj_step loop"):
         p, b = us[(timer, "plugin")], us[(timer, "bare")]
         out[timer] = {"plugin_us": p, "bare_us": b, "ratio": p / b}
         say(f"  {timer:<13} plugin {p:7.3f} us/step, bare {b:7.3f} us/step: {p / b:.3f}x "

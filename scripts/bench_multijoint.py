@@ -5,6 +5,8 @@ StepLoopTimer: thread CPU time, configurations interleaved per repeat, best repe
   arm3 plugin   assets/mjcf/arm3.xml: three mjjoint.joint instances (full nonlinear physics)
   arm3 bare     the same MJCF with the plugin instances deleted (bodies, rods, actuators kept)
   single ...    the shipped single-joint arm, plugin and bare, from the same run
+Timers as in bench_step; "state-matched" (both arms rolled out from the same states along the
+plugin run, see bench_step) is the one that isolates the plugin's cost.
 The plugin's cost per joint instance is (plugin - bare) / njoint; the ratio plugin / bare
 shrinks with the arm's size when that cost stays flat, since MuJoCo's own work grows faster.
 
@@ -19,7 +21,14 @@ from pathlib import Path
 import mujoco
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # scripts/ is not a package
-from bench_step import RolloutTimer, StepLoopTimer, bare_spec, best_us_per_step  # the shared measurement
+from bench_step import (  # the shared measurement
+    SEGMENT,
+    RolloutTimer,
+    StepLoopTimer,
+    bare_spec,
+    best_us_per_step,
+    state_matched,
+)
 
 from mjjoint.assets import build_arm, load_model
 from mjjoint.assets.builder import ASSETS_DIR
@@ -49,17 +58,19 @@ def main() -> None:
         for kind, model in (("plugin", plugin), ("bare", bare)):
             timers[("rollout", arm, kind)] = RolloutTimer(model, args.steps)
             timers[("mj_step loop", arm, kind)] = StepLoopTimer(model, args.steps)
+        matched = state_matched({"plugin": plugin, "bare": bare}, plugin, args.steps, SEGMENT)
+        timers.update({("state-matched", arm, kind): t for kind, t in matched.items()})
     us = best_us_per_step(timers, args.steps, args.repeats)
 
     print(f"mujoco {mujoco.__version__}; {args.steps} steps of {models['arm3'][0].opt.timestep * 1e3:g} ms, "
           f"best of {args.repeats}, single thread")
     print(f"{'timer':<14}{'arm':<8}{'nv':>4}{'joints':>8}{'plugin us':>11}{'bare us':>9}{'ratio':>8}{'us/joint':>10}")
-    for timer in ("rollout", "mj_step loop"):
+    for timer in ("state-matched", "rollout", "mj_step loop"):
         for arm, (plugin, _) in models.items():
             p, b = us[(timer, arm, "plugin")], us[(timer, arm, "bare")]
             print(f"{timer:<14}{arm:<8}{plugin.nv:>4}{plugin.nplugin:>8}{p:>11.3f}{b:>9.3f}{p / b:>8.3f}"
                   f"{(p - b) / plugin.nplugin:>10.3f}")
-    for timer in ("rollout", "mj_step loop"):
+    for timer in ("state-matched", "rollout", "mj_step loop"):
         r3 = us[(timer, "arm3", "plugin")] / us[(timer, "arm3", "bare")]
         r1 = us[(timer, "single", "plugin")] / us[(timer, "single", "bare")]
         print(f"plugin / bare, {timer}: arm3 {r3:.3f}x vs single joint {r1:.3f}x")
