@@ -5,7 +5,7 @@ input drifts away from the measured motion (friction and gravity make free runs 
 integrators of small errors), so a whole-record simulation error mostly measures drift.
 Instead every window of ``length`` starts from the measured state (positions measured,
 velocities from a Savitzky-Golay derivative, flexible segments at rest, the 2SEP states run
-along the measured velocity and the Bouc-Wen state along the measured deflection up to the
+along the measured motor angle and the Bouc-Wen state along the measured deflection up to the
 window) and predicts ``length`` ahead under the measured input. This is multiple shooting
 without continuity constraints: errors cannot accumulate beyond one window, yet each window is
 long enough (hundreds of ms) for dynamics — resonance, lag, hysteresis, play — to show. The
@@ -25,7 +25,7 @@ from functools import cached_property
 import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
-from scipy.signal import savgol_filter
+from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..coupling.kernels import friction_history, hysteresis_history, joint_traces
 from ..coupling.layout import (ASYM, B, BW_A, BW_BETA, BW_GAMMA, BW_N, FC, FKIND, FRICTION_2SEP, FS, HYST,
@@ -52,6 +52,17 @@ VELOCITY_ORDER = 3
 # speed (716 window rollouts of a 60 s lab recording, 2 cores: 0.69 s in two chunks, 0.76 s
 # in one). Peak memory: scripts/bench_fit.py --memory.
 ROLLOUT_BUFFER = 64 * 2 ** 20
+# 2SEP's window-start states are run along the measured motor angle, with the angle's retraces
+# smaller than its measurement noise taken for none: a play operator of half-width
+# REVERSAL_BAND x the noise std (``Measured.q_path``). A resting motor's quantised encoder
+# toggles between two counts (peak to peak sqrt(12) std for uniform quantisation error), and
+# a Savitzky-Golay velocity of that chatter crosses zero again and again; each crossing is a
+# reversal to 2SEP, which resets its pre-sliding memory. Run along that velocity the TRUE model
+# of the 20 s dynamic_friction case predicted held-out windows hardly better than the base
+# model without 2SEP (cost 0.00253 vs 0.00267); along the play-filtered angle it reaches
+# 0.00034 (half-widths of 1-5 std: 0.00034-0.00039). 3 std: a retrace must exceed 6 std, well
+# beyond one quantisation toggle (sqrt(12) = 3.5 std) even when the estimate is 10-20 % low.
+REVERSAL_BAND = 3.0
 
 
 @dataclass(frozen=True)
@@ -95,6 +106,25 @@ class Measured:
         d = self.delta
         return None if d is None else savgol_filter(d, _sg_window(1.0 / self.rate), VELOCITY_ORDER)
 
+    @cached_property
+    def q_noise(self) -> float:
+        """Measurement noise (std) of q: robust spread of q about its Savitzky-Golay smoothing.
+
+        The median absolute deviation ignores the few samples where the smoothing misses fast
+        motion; the factor undoes the share of the noise the smoothing itself follows. On a
+        15-bit resolver it returns the quantisation step / sqrt(12) within 10 %.
+        """
+        win = _sg_window(1.0 / self.rate)
+        r = self.q - savgol_filter(self.q, win, VELOCITY_ORDER)
+        follow = savgol_coeffs(win, VELOCITY_ORDER)[win // 2]
+        return float(1.4826 * np.median(np.abs(r - np.median(r))) / np.sqrt(1.0 - follow))
+
+    @cached_property
+    def q_path(self) -> np.ndarray:
+        """The motor angle with retraces within its noise band removed (REVERSAL_BAND): the path
+        2SEP's history runs along, so that encoder chatter at rest is no reversal."""
+        return _play(self.q, REVERSAL_BAND * self.q_noise)
+
     @classmethod
     def from_recording(cls, rec, gear_ratio: float, output: bool = True) -> "Measured":
         """Resample ``rec`` on its mean period; ``output=False`` ignores its theta (direct drive)."""
@@ -111,6 +141,22 @@ class Measured:
         deriv = lambda x: None if x is None else savgol_filter(x, win, VELOCITY_ORDER, deriv=1, delta=dt)  # noqa: E731
         return cls(t=grid, qd=deriv(cols["q"]), thetad=deriv(cols["theta"]),
                    gear_ratio=float(gear_ratio), rate=1.0 / dt, **cols)
+
+
+def _play(x: np.ndarray, eps: float) -> np.ndarray:
+    """Play (backlash) operator of half-width ``eps``: follows x once it is more than eps away."""
+    x = np.asarray(x, float)
+    if eps <= 0.0:
+        return x.copy()
+    y = np.empty_like(x)
+    yi = float(x[0])
+    for i, xi in enumerate(x.tolist()):
+        if xi > yi + eps:
+            yi = xi - eps
+        elif xi < yi - eps:
+            yi = xi + eps
+        y[i] = yi
+    return y
 
 
 def _sg_window(dt: float) -> int:
@@ -245,10 +291,11 @@ class Predictor:
         # first sample (on its steady branches) to each window start by the plugin's kernels.
         start = _steady_internal_states(ji.block, m.qd[:1], np.zeros(1) if m.delta is None else m.delta_path[:1])[0]
         if ji.block[FKIND] == FRICTION_2SEP:
-            # 2SEP (last reversal, pre-sliding, lag) along the measured velocity, not guessed from
-            # its sign: on a 20 s concealed case this halved the TRUE model's held-out q NRMSE
-            # (0.064 -> 0.035).
-            states[:, :X] = friction_history(ji.block, m.qd, 1.0 / m.rate, start)[i0, :X]
+            # 2SEP (last reversal, pre-sliding, lag) along the measured motor angle, its noise
+            # chatter removed (REVERSAL_BAND), not guessed from the velocity's sign: the step
+            # velocity is the path's displacement per sample.
+            w = np.diff(m.q_path, prepend=m.q_path[0]) * m.rate
+            states[:, :X] = friction_history(ji.block, w, 1.0 / m.rate, start)[i0, :X]
         if ji.block[HYST] != 0.0 and m.delta is not None:
             # Bouc-Wen x along the measured deflection (rate independent: the path fixes it); the
             # loading-branch guess can be off by the whole loop for the entire window.
