@@ -29,7 +29,7 @@ from ..joint import GROUND, JointParams, config_keys
 from . import abi, registry
 from .kernels import joint_advance, joint_forces
 from .layout import BLOCK_LEN, LD, LQ, MD, MQ, NSTATE, pack
-from .pointers import _addr, f64_array, f64_at, f64_ptr, f64_ptr_array, field, i32_array, u64_array
+from .pointers import _addr, f64_at, f64_ptr, f64_ptr_array, field, i32_array, u64_array
 from .registry import find_row, row_matches
 
 PLUGIN_NAME = "mjjoint.joint"
@@ -194,8 +194,7 @@ def _compile_hot_callbacks(off: abi.Offsets):
         r = lookup(m, d, instance)
         if r < 0:
             # Unregistered model: fail loudly (MuJoCo reports NaN in qacc) rather than guess.
-            frc = f64_array(field(d, d_frc), 1)
-            frc[0] = np.nan
+            f64_ptr(field(d, d_frc))[0] = np.nan
             return
         blk, st, q, wq, th, wth = joint_state(m, d, instance, r)
         md, ld = int(blk[MD]), int(blk[LD])

@@ -16,6 +16,8 @@ which LLVM vectorises; a hash over the same bytes is a chain of dependent multip
 """
 from __future__ import annotations
 
+import ctypes
+
 import numpy as np
 from numba import njit
 
@@ -43,7 +45,7 @@ def config_words(address: int, nbytes: int) -> np.ndarray:
     if nbytes > CONFIG_BYTES:
         raise ValueError(f"mjjoint.joint config of {nbytes} bytes; at most {CONFIG_BYTES} are supported")
     words = np.zeros(CONFIG_WORDS, dtype=np.uint64)
-    words.view(np.uint8)[:nbytes] = np.ctypeslib.as_array((np.ctypeslib.ctypes.c_uint8 * nbytes).from_address(address))
+    words.view(np.uint8)[:nbytes] = np.frombuffer(ctypes.string_at(address, nbytes), dtype=np.uint8)
     return words
 
 
