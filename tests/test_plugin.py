@@ -145,6 +145,24 @@ def test_model_at_a_recycled_address_with_another_config_fails_loudly(model):
     np.testing.assert_array_equal(again, good)
 
 
+def test_advance_without_compute_takes_no_other_models_row():
+    """compute marks the row it validated for this step's advance; an advance with no compute
+    before it (springs and dampers disabled: no passive stage) on data whose mark another model left validates anew."""
+    a = load_model(build_arm(joint=JointParams(friction=TwoSEP(fc=0.15, fs=0.2, b=5.0))))
+    b = load_model(build_arm(joint=JointParams(friction=TwoSEP(fc=0.02, fs=0.03, b=500.0))))
+    a.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_SPRING | mujoco.mjtDisableBit.mjDSBL_DAMPER)
+    stale, clean = mujoco.MjData(a), mujoco.MjData(a)
+    for data in (stale, clean):
+        data.qvel[0] = 30.0
+        data.ctrl[0] = 0.5
+    mujoco.mj_forward(b, stale)  # b's compute marks b's row in stale's plugin_data
+    for _ in range(50):
+        mujoco.mj_step(a, stale)
+        mujoco.mj_step(a, clean)
+    assert np.any(clean.plugin_state != 0.0)
+    np.testing.assert_array_equal(stale.plugin_state, clean.plugin_state)
+
+
 def test_threaded_rollout_of_two_parameter_sets_equals_sequential_runs():
     soft = load_model(build_arm(joint=JointParams(transmission=Transmission(k1=3e3))))
     sticky = load_model(build_arm(joint=JointParams(friction=TwoSEP(fc=0.15, fs=0.2))))

@@ -30,7 +30,7 @@ from . import abi, registry
 from .kernels import joint_advance, joint_forces
 from .layout import BLOCK_LEN, LD, LQ, MD, MQ, NSTATE, pack
 from .pointers import _addr, f64_at, f64_ptr, f64_ptr_array, field, i32_array, u64_array
-from .registry import find_row, row_matches
+from .registry import find_row, keys_match, row_matches
 
 PLUGIN_NAME = "mjjoint.joint"
 _MJOBJ_JOINT = int(mujoco.mjtObj.mjOBJ_JOINT)
@@ -39,6 +39,8 @@ _SINGLE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE
 _lock = threading.Lock()
 _registered: dict[str, object] = {}  # keeps every callback object alive for the process
 _next_row = 0
+# Top bit of a plugin_data slot: the cached row was validated by this step's compute.
+CHECKED = np.uint64(1 << 63)
 
 
 def _read_config(m_addr: int, instance: int) -> dict[str, str]:
@@ -151,16 +153,47 @@ def _compile_hot_callbacks(off: abi.Offsets):
     params_addr, cap = registry.PARAMS_ADDRESS, registry.CAPACITY
 
     @njit(inline="always")
+    def config_address(m, instance):
+        return field(m, m_attr) + np.uint64(i32_array(field(m, m_attradr), instance + 1)[instance])
+
+    @njit(inline="always")
     def lookup(m, d, instance):
-        """This instance's parameter row for model m (cached in d->plugin_data), or -1."""
+        """This instance's parameter row for model m (cached in d->plugin_data), or -1.
+
+        compute calls it every step and caches the row marked ``CHECKED``: validated for this
+        (m, d), config bytes included, so that this step's advance need not compare them again.
+        """
         slot = u64_array(field(d, d_data), instance + 1)
-        attr = field(m, m_attr) + i32_array(field(m, m_attradr), instance + 1)[instance]
-        r = int(slot[instance])
+        attr = config_address(m, instance)
+        # int64 throughout: int() of a uint64 stays uint64, and numba unifies uint64 with the
+        # int64 of find_row as float64, which put float conversions on the row's address.
+        r = np.int64(slot[instance] & ~CHECKED)
         model = _addr(m)
         if r >= cap or not row_matches(keys_addr, configs_addr, r, model, attr, instance):
             r = find_row(keys_addr, configs_addr, model, attr, instance)
-            if r >= 0:
-                slot[instance] = r
+        if r >= 0:
+            slot[instance] = np.uint64(r) | CHECKED
+        return r
+
+    @njit(inline="always")
+    def checked_row(m, d, instance):
+        """advance's row: the one this step's compute validated (the mark is cleared), else ``lookup``.
+
+        Within one mj_step MuJoCo runs the passive stage (compute) before integrating (advance),
+        on the same m and d. An advance that no compute preceded (passive stage disabled,
+        mj_step2 on its own) finds no mark and validates in full; a mark left by another model
+        fails the key compare.
+        """
+        slot = u64_array(field(d, d_data), instance + 1)
+        s = slot[instance]
+        r = np.int64(s & ~CHECKED)
+        if s & CHECKED:
+            slot[instance] = np.uint64(r)
+            if r < cap and keys_match(keys_addr, r, _addr(m), config_address(m, instance), instance):
+                return r
+        r = lookup(m, d, instance)
+        if r >= 0:
+            slot[instance] = np.uint64(r)  # unmarked: the next advance validates again
         return r
 
     @njit(inline="always")
@@ -208,7 +241,7 @@ def _compile_hot_callbacks(off: abi.Offsets):
 
     @cfunc(types.void(types.voidptr, types.voidptr, types.int32))
     def advance(m, d, instance):
-        r = lookup(m, d, instance)
+        r = checked_row(m, d, instance)
         if r < 0:
             return
         blk, st, q, wq, th, wth = joint_state(m, d, instance, r)

@@ -50,12 +50,20 @@ def config_words(address: int, nbytes: int) -> np.ndarray:
 
 
 @njit(cache=True, inline="always")
+def keys_match(keys_addr, r, model, attr, instance):
+    """Whether row r was registered for this model address, config address and instance."""
+    key = u64_array(keys_addr + 8 * NKEY * r, NKEY)
+    # All uint64: numba compares a uint64 with an int64 through float64 conversions.
+    return (key[K_MODEL] == np.uint64(model) and key[K_ATTR] == np.uint64(attr)
+            and key[K_INSTANCE] == np.uint64(instance))
+
+
+@njit(cache=True, inline="always")
 def row_matches(keys_addr, configs_addr, r, model, attr, instance):
     """Whether row r holds this model instance: key words equal, config bytes unchanged."""
-    key = u64_array(keys_addr + 8 * NKEY * r, NKEY)
-    if key[K_MODEL] != model or key[K_ATTR] != attr or key[K_INSTANCE] != instance:
+    if not keys_match(keys_addr, r, model, attr, instance):
         return False
-    nbytes = key[K_LEN]
+    nbytes = u64_array(keys_addr + 8 * NKEY * r, NKEY)[K_LEN]
     nwords = (nbytes + 7) // 8
     live = u64_array(attr, nwords)  # the last word may read up to 7 bytes past the config
     kept = u64_array(configs_addr + 8 * CONFIG_WORDS * r, nwords)
