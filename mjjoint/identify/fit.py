@@ -3,9 +3,12 @@
 The optimiser is MuJoCo's own bounded Levenberg-Marquardt (``mujoco.minimize``), whose
 residual is vectorised over parameter vectors: every finite-difference Jacobian is ONE batched
 ``mujoco.rollout`` of all windows for all perturbed models, spread over the cores. Parameters
-are optimised in log coordinates where they span decades. Confidence intervals come from the
+are optimised in log coordinates where they span decades. The LM runs first on a seeded
+quarter of the windows, then on all of them, and stops when its Gauss-Newton step is a tenth
+of the parameters' standard errors (constants below). Confidence intervals come from the
 Jacobian at the optimum (s^2 (J^T J)^-1, s^2 from the residual); a parameter whose 95 %
 interval is wider than its value, or that sits on a bound, is flagged.
+
 """
 from __future__ import annotations
 
@@ -19,12 +22,36 @@ from .structure import Structure
 from .windows import Predictor
 
 _BAD = 1e3  # residual given to an unstable (NaN) prediction: far worse than any real fit
-# Stopping rule: the default xtol (1e-8) never fires on these residuals (~1e4 entries of
-# O(0.01-1)), so LM ran to max_iter; a relative step of 1e-4 in the (log-)unit coordinates is
-# ~1e-4 of a parameter, far inside any 95 % interval. (Raising mu tenfold per failed step,
-# which also saved rollouts in scripts/bench_fit.py (c), stalled a drive fit in a narrow
-# valley at 30 % Coulomb error: kept at MuJoCo's 10^0.1.)
+# Stopping rule. The Gauss-Newton step at the current point, measured in the fit's own
+# standard errors (the metric of the covariance s^2 (J^T J)^-1 the intervals come from,
+# ``gauss_newton_step_se``): once it is below STEP_SE, no combination of the parameters would
+# move by more than 0.1 of its standard error (0.05 of its 95 % half-width), and the Jacobian
+# just taken there serves the intervals. The same rule stops a fit that stalls: when the last
+# STALL_ITER accepted steps together lowered r'r by less than STEP_SE^2 s^2 (what a 0.1-SE move
+# is worth). A relative step of XTOL in the (log-)unit coordinates stays as a backstop (the
+# default 1e-8 never fires on these residuals, ~1e4 entries of O(0.01-1)).
+STEP_SE = 0.1
+STALL_ITER = 2
 XTOL = 1e-4
+# Coarse to fine: the first LM phase runs on a seeded COARSE_SHARE of the training windows (at
+# least COARSE_MIN, and only if all windows are at least twice as many) until its step is
+# within COARSE_SE of the subset's standard errors; far from the optimum a quarter of the
+# windows points the same way at a quarter of the rollouts. The second phase starts there on
+# all windows and ends on STEP_SE, so the end point is the full fit's.
+COARSE_SHARE = 0.25
+COARSE_MIN = 8
+COARSE_SE = 1.0
+# Damping. mujoco.minimize adds mu I to J^T J; with x_scale="jac" it works on columns scaled
+# to unit norm, so mu is relative to each parameter's own curvature (Marquardt's scaling) and
+# MU_MIN = 1e-3 is the smallest damping that changes a step at all. Each failed trial step
+# costs a rollout of all windows and raises mu by MU_FACTOR: at MuJoCo's default 10^0.1 from
+# its absolute 1e-6, a fit with an unmodelled backlash spent 87 trials (65 rollouts) in one
+# iteration climbing to the mu it needed. sqrt(10) takes 2 trials per decade. (A tenfold factor
+# on the unscaled problem stalled a drive fit in a narrow valley at 30 % Coulomb error,
+# tests/test_drive.py; that fit converges with these settings.)
+MU_MIN = 1e-3
+MU_FACTOR = 10.0 ** 0.5
+EPS = np.finfo(np.float64).eps ** 0.5  # mujoco.minimize's own finite-difference step
 
 
 @dataclass
@@ -39,19 +66,25 @@ class FitResult:
     iterations: int = 0
     rollouts: float = 0.0
     seconds: float = 0.0
+    coarse_iterations: int = 0  # of ``iterations``, those on the window subset (COARSE_SHARE)
 
     def as_dict(self) -> dict:
         return {"structure": self.structure.describe(), "cost_train": self.cost_train,
                 "cost_test": self.cost_test, "nrmse_train": self.nrmse_train, "nrmse_test": self.nrmse_test,
                 "intervals_95": {k: list(v) for k, v in self.intervals.items()}, "warnings": self.warnings,
-                "iterations": self.iterations, "rollouts": self.rollouts, "seconds": self.seconds}
+                "iterations": self.iterations, "coarse_iterations": self.coarse_iterations,
+                "rollouts": self.rollouts, "seconds": self.seconds}
 
 
-def residual_matrix(pred_fn, structure: Structure, names, windows, predictor: Predictor):
+def residual_matrix(pred_fn, structure: Structure, names, windows, predictor: Predictor, seen: dict | None = None):
+    """Residual columns for parameter vectors (columns of x); ``seen`` keeps the predictions
+    of the last single-vector call ({"x": x, "pred": ...})."""
     def residual(x: np.ndarray) -> np.ndarray:
         x = np.atleast_2d(x.T).T if x.ndim == 1 else x
         structs = [structure.from_vector(x[:, i], names) for i in range(x.shape[1])]
         preds = pred_fn(structs, windows)
+        if seen is not None and len(preds) == 1:
+            seen.update(x=x[:, 0].copy(), pred=preds[0])
         cols = []
         for p in preds:
             r = predictor.residuals(p, windows)
@@ -60,13 +93,19 @@ def residual_matrix(pred_fn, structure: Structure, names, windows, predictor: Pr
     return residual
 
 
-def evaluate(predictor: Predictor, structure: Structure) -> tuple[float, float, dict, dict]:
-    """Train/test cost (mean squared normalised residual) and NRMSE per signal."""
+def evaluate(predictor: Predictor, structure: Structure, train_pred: dict | None = None
+             ) -> tuple[float, float, dict, dict]:
+    """Train/test cost (mean squared normalised residual) and NRMSE per signal.
+
+    ``train_pred``: the structure's predictions of the training windows, if already made.
+    """
     tr, te = predictor.train, predictor.test
-    both = np.concatenate([tr, te])
-    (pred,) = predictor.predict([structure], both)
-    ptr = {k: v[: len(tr)] for k, v in pred.items()}
-    pte = {k: v[len(tr):] for k, v in pred.items()}
+    if train_pred is None:
+        (pred,) = predictor.predict([structure], np.concatenate([tr, te]))
+        ptr = {k: v[: len(tr)] for k, v in pred.items()}
+        pte = {k: v[len(tr):] for k, v in pred.items()}
+    else:
+        ptr, (pte,) = train_pred, predictor.predict([structure], te)
     c = lambda p, w: float(np.mean(np.nan_to_num(predictor.residuals(p, w), nan=_BAD) ** 2))  # noqa: E731
     return c(ptr, tr), c(pte, te), predictor.nrmse(ptr, tr), predictor.nrmse(pte, te)
 
@@ -79,40 +118,142 @@ def window_costs(predictor: Predictor, structure: Structure, windows: np.ndarray
     return np.asarray(per)
 
 
+class _Converged(Exception):
+    """Raised from the Jacobian callback when the Gauss-Newton step is shorter than the tolerance."""
+
+
+class _Objective:
+    """One window set's vectorised residual for mujoco.minimize, with the FD Jacobian and the
+    step-length stopping rule. It remembers the last Jacobian (with its point and residual) and
+    the predictions of the last single-point evaluation, so that neither is recomputed after
+    the fit."""
+
+    def __init__(self, predictor: Predictor, structure: Structure, names, windows, lo, hi, tol_se: float):
+        self.seen: dict = {}
+        self.residual = residual_matrix(predictor.predict, structure, names, windows, predictor, self.seen)
+        self.bounds = [lo[:, None], hi[:, None]]
+        self.lo, self.hi, self.tol_se = lo, hi, tol_se
+        self.jac_at: tuple | None = None  # (x, r, jac) of the last Jacobian
+        self.steps_se: list[float] = []
+        self.costs: list[float] = []  # r'r at each Jacobian
+        self.m = 1  # residual entries
+
+    def jacobian(self, x: np.ndarray, r: np.ndarray) -> np.ndarray:
+        jac, _ = minimize.jacobian_fd(self.residual, x, r, EPS, 0, self.bounds)
+        self.jac_at = (x[:, 0].copy(), r[:, 0].copy(), jac)
+        rr = float(r[:, 0] @ r[:, 0])
+        self.m = r.shape[0]
+        self.costs.append(rr)
+        self.steps_se.append(gauss_newton_step_se(jac, r[:, 0], x[:, 0], self.lo, self.hi))
+        s2 = rr / max(r.shape[0] - x.shape[0], 1)
+        gained = (self.costs[-1 - STALL_ITER] - rr) / max(s2, 1e-300) if len(self.costs) > STALL_ITER else np.inf
+        if self.steps_se[-1] < self.tol_se or gained < self.tol_se ** 2:
+            raise _Converged
+        return jac
+
+    def final(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(r, J) at the fit's x: the last Jacobian's if it was taken there or one step below
+        XTOL away (the LM's own stop), else a fresh one."""
+        if self.jac_at is not None:
+            xj, rj, jac = self.jac_at
+            if np.linalg.norm(x - xj) <= XTOL * (XTOL + np.linalg.norm(x)):
+                return rj, jac
+        r = self.residual(x[:, None])
+        jac, _ = minimize.jacobian_fd(self.residual, x[:, None], r, EPS, 0, self.bounds)
+        return r[:, 0], jac
+
+    def prediction(self, x: np.ndarray) -> dict | None:
+        """The predictions at x if the last single-point evaluation was there."""
+        return self.seen["pred"] if "x" in self.seen and np.array_equal(self.seen["x"], x) else None
+
+
+def gauss_newton_step_se(jac: np.ndarray, r: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
+    """Length of the undamped Gauss-Newton step in standard errors of the fit: sqrt(g' H^+ g / s^2)
+    with g = J'r, H = J'J over the parameters not held by a bound, s^2 = r'r / (m - n). The
+    step d = H^+ g measured in the metric of the parameters' covariance s^2 H^-1: a value of 0.1
+    means no combination of the parameters would move by more than 0.1 of its standard error."""
+    g = jac.T @ r
+    free = ~(((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0)))
+    if not free.any():
+        return 0.0
+    j = jac[:, free]
+    lam, vec = np.linalg.eigh(j.T @ j)
+    keep = lam > max(float(lam.max()), 1e-300) * 1e-14  # the cut-off of the intervals
+    d2 = float(np.sum((vec[:, keep].T @ g[free]) ** 2 / lam[keep]))
+    s2 = float(r @ r) / max(r.size - x.size, 1)
+    return float(np.sqrt(d2 / max(s2, 1e-300)))
+
+
+def _lm(obj: _Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndarray, int]:
+    """(x, iterations): mujoco.minimize's LM from x0 until the step rule, its xtol or max_iter."""
+    iterations = 0
+
+    def count(log):
+        nonlocal iterations
+        iterations = len(log)
+        on_iter(iterations, 2.0 * float(log[-1].objective), obj.m)
+    try:
+        x, _ = minimize.least_squares(x0, obj.residual, bounds=[obj.lo, obj.hi], jacobian=obj.jacobian,
+                                      max_iter=max_iter, xtol=XTOL, x_scale="jac", mu_min=MU_MIN,
+                                      mu_factor=MU_FACTOR, verbose=minimize.Verbosity.SILENT, iter_callback=count)
+    except _Converged:
+        on_iter(iterations + 1, obj.costs[-1], obj.m)
+        return obj.jac_at[0], iterations + 1
+    return x.reshape(-1), iterations
+
+
 def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int = 25,
         windows: np.ndarray | None = None, progress=None) -> FitResult:
-    """Least-squares fit of the parameters ``names`` (default: all) of ``structure``."""
+    """Least-squares fit of the parameters ``names`` (default: all) of ``structure``.
+
+    Two LM phases: on a seeded quarter of the windows until the step is within COARSE_SE of
+    that subset's standard errors, then on all windows until it is within STEP_SE of theirs
+    (each phase at most ``max_iter`` iterations). ``progress(iteration, cost)`` gets the mean
+    squared residual over the windows of the phase.
+    """
     start = time.perf_counter()
     roll0 = predictor.rollouts
-    windows = predictor.train if windows is None else windows
+    windows = predictor.train if windows is None else np.asarray(windows)
     # The structure's own order: vector() and from_vector() use it, so the labels must too.
     wanted = None if names is None else set(names)
     names = [p.name for p in structure.params if wanted is None or p.name in wanted]
-    x0 = structure.vector(names)
     lo, hi = structure.bounds(names)
-    x0 = np.clip(x0, lo, hi)
-    residual = residual_matrix(predictor.predict, structure, names, windows, predictor)
-
-    def on_iter(log):
-        if progress is not None:
-            progress(len(log), float(log[-1].objective))
-
-    x, log = minimize.least_squares(x0, residual, bounds=[lo, hi], max_iter=max_iter,
-                                    xtol=XTOL, verbose=minimize.Verbosity.SILENT, iter_callback=on_iter)
+    x = np.clip(structure.vector(names), lo, hi)
+    done = 0
+    subset = coarse_windows(windows, predictor.design.seed)
+    if subset is not None:
+        coarse = _Objective(predictor, structure, names, subset, lo, hi, COARSE_SE)
+        x, done = _lm(coarse, x, max_iter, _reporter(progress, 0))
+    obj = _Objective(predictor, structure, names, windows, lo, hi, STEP_SE)
+    x, k = _lm(obj, x, max_iter, _reporter(progress, done))
     best = structure.from_vector(x, names)
-    intervals, warnings = _intervals(residual, x, lo, hi, names, best)
-    ctr, cte, ntr, nte = evaluate(predictor, best)
-    return FitResult(best, ctr, cte, ntr, nte, intervals, warnings, iterations=len(log),
-                     rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start)
+    r, jac = obj.final(x)
+    intervals, warnings = _intervals(jac, r, x, lo, hi, names, best)
+    same = np.array_equal(windows, predictor.train)
+    ctr, cte, ntr, nte = evaluate(predictor, best, obj.prediction(x) if same else None)
+    return FitResult(best, ctr, cte, ntr, nte, intervals, warnings, iterations=done + k,
+                     rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start, coarse_iterations=done)
 
 
-def _intervals(residual, x, lo, hi, names, structure: Structure):
+def _reporter(progress, done: int):
+    """The LM's iteration callback: ``progress(iteration, mean squared residual)``."""
+    def on_iter(iteration: int, rr: float, m: int) -> None:
+        if progress is not None:
+            progress(done + iteration, rr / m)
+    return on_iter
+
+
+def coarse_windows(windows: np.ndarray, seed: int) -> np.ndarray | None:
+    """The seeded share of the windows the first LM phase runs on (None: too few for two phases)."""
+    n = max(COARSE_MIN, int(round(COARSE_SHARE * len(windows))))
+    if COARSE_SHARE <= 0 or 2 * n > len(windows):
+        return None
+    return np.sort(np.random.default_rng(seed).choice(windows, n, replace=False))
+
+
+def _intervals(jac, r, x, lo, hi, names, structure: Structure):
     """95 % intervals in physical units from the Jacobian at the optimum."""
-    r0 = residual(x[:, None])
-    jac, _ = minimize.jacobian_fd(residual=residual, x=x[:, None], r=r0, eps=1e-4, n_res=0,
-                                  bounds=[lo[:, None], hi[:, None]])
     jac = np.asarray(jac)
-    r = r0[:, 0]
     dof = max(r.size - x.size, 1)
     s2 = float(r @ r) / dof
     h = jac.T @ jac
