@@ -193,6 +193,7 @@ class Predictor:
             self.scale[s] = float(np.sqrt(np.mean(spread ** 2))) or 1.0
         self.meas = meas
         self.rollouts = 0.0  # in full-recording equivalents
+        self._scratch: dict = {}  # rollout MjData per model signature (_datas)
 
     # ---- measured ----------------------------------------------------------------------
     def measured_windows(self) -> dict[str, np.ndarray | None]:
@@ -226,10 +227,11 @@ class Predictor:
             return [self.predict([s], windows)[0] for s in structures]
         for mod in models:
             register_model(mod)  # a memoised model's registry row may have been recycled
-        x0 = np.concatenate([self._initial_states(mod, windows) for mod in models])
-        ctrl = np.concatenate([self._controls(mod, windows, d) for mod, d in zip(models, delays)])
+        jis = [joint_indices(mod)[0] for mod in models]  # parsed once per model and call
+        x0 = np.concatenate([self._initial_states(mod, windows, ji) for mod, ji in zip(models, jis)])
+        ctrl = np.concatenate([self._controls(mod, windows, d, ji) for mod, d, ji in zip(models, delays, jis)])
         batch_models = [mod for mod in models for _ in windows]
-        datas = [mujoco.MjData(models[0]) for _ in range(max(1, self.nthread))]
+        datas = self._datas(models[0])
         sub = self._substeps(models[0])
         nw, nrow, nstep, nx, nsens = len(windows), len(batch_models), ctrl.shape[1], x0.shape[1], models[0].nsensordata
         chunk = max(len(datas), min(nrow, ROLLOUT_BUFFER // (8 * nstep * (nx + nsens))))
@@ -243,12 +245,20 @@ class Predictor:
             for k in range(a // nw, (b - 1) // nw + 1):  # the models whose windows this chunk holds
                 lo, hi = max(a, k * nw), min(b, (k + 1) * nw)
                 picked = state[lo - a:hi - a, sub - 1::sub][:, : self.nwin_samples - 1]
-                parts[k].append(self._signals(models[k], np.concatenate([x0[lo:hi, None], picked], axis=1)))
+                parts[k].append(self._signals(models[k], np.concatenate([x0[lo:hi, None], picked], axis=1), jis[k]))
         self.rollouts += len(structures) * len(windows) / len(self.starts)
         return [p[0] if len(p) == 1 else {s: np.concatenate([q[s] for q in p]) for s in p[0]} for p in parts]
 
-    def _signals(self, model, full: np.ndarray) -> dict[str, np.ndarray]:
-        ji = joint_indices(model)[0]
+    def _datas(self, model) -> list:
+        """Scratch MjData for the rollout threads, one set per model signature, kept across
+        calls (each new MjData runs the plugin's init): the rows set every state they read."""
+        key = (_signature(model), self.nthread)
+        if key not in self._scratch:
+            self._scratch[key] = [mujoco.MjData(model) for _ in range(max(1, self.nthread))]
+        return self._scratch[key]
+
+    def _signals(self, model, full: np.ndarray, ji=None) -> dict[str, np.ndarray]:
+        ji = joint_indices(model)[0] if ji is None else ji
         nw, ns, nx = full.shape
         flat = full.reshape(nw * ns, nx)
         q = flat[:, 1 + ji.motor_qpos]
@@ -269,8 +279,8 @@ class Predictor:
             raise ValueError(f"recording rate {self.m.rate:g} Hz is not 1/timestep divided by an integer")
         return sub
 
-    def _initial_states(self, model, windows) -> np.ndarray:
-        ji = joint_indices(model)[0]
+    def _initial_states(self, model, windows, ji=None) -> np.ndarray:
+        ji = joint_indices(model)[0] if ji is None else ji
         d = mujoco.MjData(model)
         mujoco.mj_resetData(model, d)
         template = np.empty(mujoco.mj_stateSize(model, FULL))
@@ -303,13 +313,13 @@ class Predictor:
         x0[:, ji.state_start:ji.state_start + NSTATE] = states
         return x0
 
-    def _controls(self, model, windows, delay: float) -> np.ndarray:
+    def _controls(self, model, windows, delay: float, ji=None) -> np.ndarray:
         """Per-step controls: the zero-order-held input averaged over [t - d, t - d + h].
 
         For d = 0 this is exactly the held sample; for d > 0 it is the torque a delayed hold
         delivers over the step, continuous in d so the delay can be fitted by gradients.
         """
-        ji = joint_indices(model)[0]
+        ji = joint_indices(model)[0] if ji is None else ji
         sub = self._substeps(model)
         h = model.opt.timestep
         n = self.nwin_samples
