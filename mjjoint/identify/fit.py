@@ -45,7 +45,7 @@ COARSE_SE = 1.0
 # to unit norm, so mu is relative to each parameter's own curvature (Marquardt's scaling) and
 # MU_MIN = 1e-3 is the smallest damping that changes a step at all. Each failed trial step
 # costs a rollout of all windows and raises mu by MU_FACTOR: at MuJoCo's default 10^0.1 from
-# its absolute 1e-6, a fit with an unmodelled backlash spent 87 trials (65 rollouts) in one
+# its absolute 1e-6, a fit with an unmodelled backlash spent 88 trials (66 rollouts) in one
 # iteration climbing to the mu it needed. sqrt(10) takes 2 trials per decade. (A tenfold factor
 # on the unscaled problem stalled a drive fit in a narrow valley at 30 % Coulomb error,
 # tests/test_drive.py; that fit converges with these settings.)

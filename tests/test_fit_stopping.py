@@ -1,0 +1,60 @@
+"""identify.fit's LM schedule: the step rule in standard errors, and coarse-to-fine windows."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mjjoint.assets.drive import DriveSpec
+from mjjoint.identify import fit as fitmod
+from mjjoint.identify.fit import coarse_windows, fit, gauss_newton_step_se
+from mjjoint.identify.structure import Structure
+from mjjoint.identify.windows import Measured, Predictor, WindowDesign
+
+from test_drive import closed_loop_recording
+
+
+def test_the_step_in_standard_errors_is_the_distance_to_a_linear_optimum():
+    rng = np.random.default_rng(1)
+    a = rng.normal(size=(200, 3)) * [1.0, 10.0, 0.1]  # badly scaled columns: the metric, not |dx|
+    b = rng.normal(size=200)
+    x = np.array([0.3, -0.2, 5.0])
+    r = a @ x - b
+    opt = np.linalg.lstsq(a, b, rcond=None)[0]
+    s2 = float(r @ r) / (200 - 3)
+    d = x - opt
+    expected = np.sqrt(d @ a.T @ a @ d / s2)
+    lo, hi = np.full(3, -10.0), np.full(3, 10.0)
+    assert gauss_newton_step_se(a, r, x, lo, hi) == pytest.approx(expected, rel=1e-9)
+    assert gauss_newton_step_se(a, a @ opt - b, opt, lo, hi) == pytest.approx(0.0, abs=1e-9)
+    # A parameter on its bound with the gradient pushing outwards is held there: only the
+    # others' step counts.
+    g = a.T @ r
+    lo[0], hi[0] = (x[0], 10.0) if g[0] > 0 else (-10.0, x[0])
+    rest = np.linalg.lstsq(a[:, 1:], b - a[:, 0] * x[0], rcond=None)[0]
+    d = np.concatenate([[0.0], x[1:] - rest])
+    assert gauss_newton_step_se(a, r, x, lo, hi) == pytest.approx(np.sqrt(d @ a.T @ a @ d / s2), rel=1e-9)
+
+
+def test_the_coarse_windows_are_a_seeded_quarter_of_enough_windows():
+    w = np.arange(3, 63)
+    sub = coarse_windows(w, seed=4)
+    assert len(sub) == 15 and np.all(np.isin(sub, w)) and np.all(np.diff(sub) > 0)
+    assert np.array_equal(sub, coarse_windows(w, seed=4)) and not np.array_equal(sub, coarse_windows(w, seed=5))
+    assert len(coarse_windows(np.arange(16), 0)) == fitmod.COARSE_MIN
+    assert coarse_windows(np.arange(15), 0) is None  # too few windows for two phases
+
+
+def test_the_coarse_phase_ends_where_a_fit_on_all_windows_ends(monkeypatch):
+    """Coarse-to-fine changes the path, not the end point: the same parameters within a small
+    share of their 95 % intervals as a fit that runs on all windows from the start."""
+    pred = Predictor(Measured.from_recording(closed_loop_recording(), 1.0, output=False), WindowDesign(length=0.5))
+    start = Structure.create(("coulomb_friction", "viscous_friction", "input_offset"), DriveSpec(), 1.0)
+    two = fit(pred, start, max_iter=30)
+    assert two.coarse_iterations > 0
+    monkeypatch.setattr(fitmod, "COARSE_SHARE", 0.0)
+    one = fit(pred, start, max_iter=30)
+    assert one.coarse_iterations == 0
+    assert two.rollouts < one.rollouts
+    for name, (lo, hi) in one.intervals.items():
+        assert abs(two.structure.values[name] - one.structure.values[name]) < 0.1 * (hi - lo), name
+    assert two.cost_test == pytest.approx(one.cost_test, rel=1e-3)
