@@ -135,7 +135,10 @@ def test_when_nothing_is_missing_it_says_so(files, capsys):
     d = json.loads((out / "diagnosis.json").read_text())
     assert d["missing"] == [] and d["steps"] == []
     assert d["verdict"].startswith("nothing significant is missing")
-    assert d["final_fit"] == d["initial_fit"]
+    # The final model is the base structure re-estimated under the robust loss over windows
+    # (docs/diagnosis.md, loop step 5): no effect added, nearly the same fit of this exact recording.
+    before, after = d["initial_fit"]["nrmse_heldout"], d["final_fit"]["nrmse_heldout"]
+    assert before.keys() == after.keys() and all(after[k] == pytest.approx(before[k], rel=0.05) for k in before)
     assert capsys.readouterr().out.startswith("verdict: nothing significant is missing")
     html = (out / "index.html").read_text()
     assert html.count("<img ") == 2 and "Step 1" not in html

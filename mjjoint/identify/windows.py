@@ -341,6 +341,16 @@ class Predictor:
             parts.append(e.ravel())
         return np.concatenate(parts)
 
+    def window_mean_squares(self, r: np.ndarray, nwindows: int) -> np.ndarray:
+        """Mean square of a ``residuals()`` vector (or of each column of a matrix of them) per
+        window: shape (nwindows,) or (nwindows, columns)."""
+        return np.mean(self.window_blocks(r, nwindows) ** 2, axis=(0, 2))
+
+    def window_blocks(self, r: np.ndarray, nwindows: int) -> np.ndarray:
+        """A ``residuals()`` vector or matrix as (signals, windows, samples[, columns]) (a view)."""
+        r = np.asarray(r)
+        return r.reshape(len(self.signals), nwindows, len(self.cols), *r.shape[1:])
+
     def nrmse(self, pred: dict[str, np.ndarray], windows: np.ndarray) -> dict[str, float]:
         """Prediction NRMSE per signal: rms error over the signal's spread within windows."""
         out = {}
