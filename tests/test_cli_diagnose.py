@@ -139,6 +139,8 @@ def test_when_nothing_is_missing_it_says_so(files, capsys):
     # (docs/diagnosis.md, loop step 5): no effect added, nearly the same fit of this exact recording.
     before, after = d["initial_fit"]["nrmse_heldout"], d["final_fit"]["nrmse_heldout"]
     assert before.keys() == after.keys() and all(after[k] == pytest.approx(before[k], rel=0.05) for k in before)
+    # and it is only reported if it predicts the held-out windows at least as well (loop step 5)
+    assert d["final_fit"]["cost_heldout"] <= d["initial_fit"]["cost_heldout"]
     assert capsys.readouterr().out.startswith("verdict: nothing significant is missing")
     html = (out / "index.html").read_text()
     assert html.count("<img ") == 2 and "Step 1" not in html

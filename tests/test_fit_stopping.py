@@ -57,4 +57,7 @@ def test_the_coarse_phase_ends_where_a_fit_on_all_windows_ends(monkeypatch):
     assert two.rollouts < one.rollouts
     for name, (lo, hi) in one.intervals.items():
         assert abs(two.structure.values[name] - one.structure.values[name]) < 0.1 * (hi - lo), name
-    assert two.cost_test == pytest.approx(one.cost_test, rel=1e-3)
+    # Both minimise the training cost, so that is where the end points must agree; the held-out
+    # cost is not minimised and moves ~1e-3 for parameter changes of 1e-6 here (stick-slip
+    # windows of the closed loop), which says nothing about where LM ended.
+    assert two.cost_train == pytest.approx(one.cost_train, rel=1e-5)

@@ -53,14 +53,16 @@ XTOL = 1e-4
 COARSE_SHARE = 0.25
 COARSE_MIN = 8
 COARSE_SE = 1.0
-# Damping. mujoco.minimize adds mu I to J^T J; with x_scale="jac" it works on columns scaled
-# to unit norm, so mu is relative to each parameter's own curvature (Marquardt's scaling) and
-# MU_MIN = 1e-3 is the smallest damping that changes a step at all. Each failed trial step
-# costs a rollout of all windows and raises mu by MU_FACTOR: at MuJoCo's default 10^0.1 from
-# its absolute 1e-6, a fit with an unmodelled backlash spent 88 trials (66 rollouts) in one
-# iteration climbing to the mu it needed. sqrt(10) takes 2 trials per decade. (A tenfold factor
-# on the unscaled problem stalled a drive fit in a narrow valley at 30 % Coulomb error,
-# tests/test_drive.py; that fit converges with these settings.)
+# Damping. mujoco.minimize adds mu I to J^T J (log parameters, residuals scaled per signal).
+# Each failed trial step costs a rollout of all windows and raises mu by MU_FACTOR: at MuJoCo's
+# default 10^0.1 from its 1e-6, a fit with an unmodelled backlash spent 88 trials (66
+# rollouts) in one iteration climbing to the mu it needed; from MU_MIN = 1e-3, sqrt(10) takes 2
+# trials per decade. (A tenfold factor stalled a drive fit in a narrow valley at 30 % Coulomb
+# error, tests/test_drive.py; that fit converges with these settings.) No column scaling
+# (x_scale="jac", Marquardt's): it makes mu relative to each column's norm, so a parameter the
+# data barely constrain takes one step across its whole range (BAM per-log fits: link inertia
+# 1e-5 -> 100 kg m^2, then g to its bound, where the stall rule stopped; tests/test_bam.py,
+# slow set); bench_fit (c) needs the same rollouts without it.
 MU_MIN = 1e-3
 MU_FACTOR = 10.0 ** 0.5
 EPS = np.finfo(np.float64).eps ** 0.5  # mujoco.minimize's own finite-difference step
@@ -233,7 +235,7 @@ def _lm(obj: _Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.nda
         on_iter(iterations, 2.0 * float(log[-1].objective), obj.m)
     try:
         x, _ = minimize.least_squares(x0, obj.residual, bounds=[obj.lo, obj.hi], jacobian=obj.jacobian,
-                                      max_iter=max_iter, xtol=XTOL, x_scale="jac", mu_min=MU_MIN,
+                                      max_iter=max_iter, xtol=XTOL, mu_min=MU_MIN,
                                       mu_factor=MU_FACTOR, verbose=minimize.Verbosity.SILENT, iter_callback=count)
     except _Converged:
         on_iter(iterations + 1, obj.costs[-1], obj.m)
