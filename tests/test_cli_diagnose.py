@@ -135,6 +135,7 @@ def test_when_nothing_is_missing_it_says_so(files, capsys):
     d = json.loads((out / "diagnosis.json").read_text())
     assert d["missing"] == [] and d["steps"] == []
     assert d["verdict"].startswith("nothing significant is missing")
+    assert "the best candidate" in d["verdict"] and "but fails: " in d["verdict"]  # which test, not a stock reason
     # The final model is the base structure re-estimated under the robust loss over windows
     # (docs/diagnosis.md, loop step 5): no effect added, nearly the same fit of this exact recording.
     before, after = d["initial_fit"]["nrmse_heldout"], d["final_fit"]["nrmse_heldout"]

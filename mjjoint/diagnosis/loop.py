@@ -243,6 +243,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     initial = current
     history = [current]
     steps: list[Step] = []
+    rejected = ""  # why the last round's best candidate was not added, for the verdict
     for _ in range(options.max_rounds):
         where = residual_location(predictor, current.structure)
         screened: dict[str, tuple[float, FitResult]] = {}
@@ -267,6 +268,13 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         tested_on = consistency["windows"]
         material = current.cost_test - cand.cost_test >= options.min_abs
         if gain < options.min_gain or not material or p_value > options.max_p or not bic_ok:
+            failed = [test for test, ok in (
+                (f"gain {100 * gain:.1f} % < {100 * options.min_gain:.0f} %", gain >= options.min_gain),
+                (f"absolute gain {current.cost_test - cand.cost_test:.2g} < {options.min_abs:g}", material),
+                (f"paired p = {p_value:.3f} > {options.max_p:g}", p_value <= options.max_p),
+                ("BIC higher", bic_ok)) if not ok]
+            rejected = (f"the best candidate, {best}, lowers the held-out cost by {100 * gain:.1f} % "
+                        f"but fails: {', '.join(failed)}")
             say(f"best candidate {best}: held-out cost -{100 * gain:.1f} % "
                 f"(abs {current.cost_test - cand.cost_test:.3g}, paired p = {p_value:.3f} on {tested_on}, "
                 f"BIC {'lower' if bic_ok else 'higher'}): not significant")
@@ -310,8 +318,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         verdict = (f"missing physics found: {', '.join(named)}; held-out cost "
                    f"{initial.cost_test:.4g} -> {current.cost_test:.4g}")
     else:
-        verdict = ("nothing significant is missing: no candidate effect lowers the held-out "
-                   f"prediction cost by {100 * options.min_gain:.0f} % or more")
+        verdict = "nothing significant is missing" + (f": {rejected}" if rejected else "")
     return Diagnosis(steps, initial, current, final_where, verdict,
                      predictor.rollouts - roll0, time.perf_counter() - t_start, history)
 
