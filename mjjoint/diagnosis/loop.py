@@ -9,7 +9,8 @@ Each round:
 4. the candidate that lowers the HELD-OUT cost most is named if it passes both tests below;
    it is added, the whole structure refitted, and the next round starts;
 5. when no candidate passes, the final structure's parameters are estimated once more under the
-   robust loss over windows (``identify.fit``, ``robust=True``; ``DiagnoseOptions.robust_final``).
+   robust loss over windows (``identify.fit``, ``robust=True``; ``DiagnoseOptions.robust_final``),
+   kept only if that lowers the held-out cost.
 All fits up to 5 are least squares: while a structure is being searched, the windows it
 predicts worst are where missing physics shows, and a robust fit would discount them as
 outliers (20 s dynamic_friction case, robust fits throughout: 2SEP still lowers the held-out
