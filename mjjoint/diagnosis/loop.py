@@ -268,12 +268,12 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         p_value = consistency["p"]
         tested_on = consistency["windows"]
         material = current.cost_test - cand.cost_test >= options.min_abs
-        if gain < options.min_gain or not material or p_value > options.max_p or not bic_ok:
-            failed = [test for test, ok in (
-                (f"gain {100 * gain:.1f} % < {100 * options.min_gain:.0f} %", gain >= options.min_gain),
-                (f"absolute gain {current.cost_test - cand.cost_test:.2g} < {options.min_abs:g}", material),
-                (f"paired p = {p_value:.3f} > {options.max_p:g}", p_value <= options.max_p),
-                ("BIC higher", bic_ok)) if not ok]
+        failed = [test for test, fails in (
+            (f"gain {100 * gain:.1f} % < {100 * options.min_gain:.0f} %", gain < options.min_gain),
+            (f"absolute gain {current.cost_test - cand.cost_test:.2g} < {options.min_abs:g}", not material),
+            (f"paired p = {p_value:.3f} > {options.max_p:g}", p_value > options.max_p),
+            ("BIC higher", not bic_ok)) if fails]
+        if failed:
             rejected = (f"the best candidate, {best}, lowers the held-out cost by {100 * gain:.1f} % "
                         f"but fails: {', '.join(failed)}")
             say(f"best candidate {best}: held-out cost -{100 * gain:.1f} % "
@@ -300,9 +300,10 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         # robust loss cannot tell a window no model explains from one where physics outside the
         # catalogue acts: on EMPS (backward viscous slope 231 against 155 N s/m forward) it
         # discounted the backward windows, Fv fell to the forward slope, held-out cost +72 %.
+        keep = robust.cost_test < current.cost_test
         say(f"robust estimate: held-out cost {robust.cost_test:.4g} against least squares' "
-            f"{current.cost_test:.4g}: {'kept' if robust.cost_test < current.cost_test else 'not kept'}")
-        if robust.cost_test < current.cost_test:
+            f"{current.cost_test:.4g}: {'kept' if keep else 'not kept'}")
+        if keep:
             current = robust
             if steps:  # the last step's structure, re-estimated: the model "after"
                 history[-1] = current

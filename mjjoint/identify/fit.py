@@ -158,6 +158,16 @@ def window_costs(predictor: Predictor, structure: Structure, windows: np.ndarray
     return predictor.window_mean_squares(r, len(windows))
 
 
+# Eigenvalues of J^T J below this share of the largest are taken as unidentifiable directions,
+# by the intervals and by the step rule alike.
+EIG_FLOOR = 1e-14
+
+
+def _variance(r: np.ndarray, nparams: int) -> float:
+    """The residual variance s^2 = r'r / (m - n) the intervals and the step rule are scaled by."""
+    return float(r @ r) / max(r.size - nparams, 1)
+
+
 class _Converged(Exception):
     """Raised from the Jacobian callback when the Gauss-Newton step is shorter than the tolerance."""
 
@@ -186,7 +196,7 @@ class _Objective:
         self.m = r.shape[0]
         self.costs.append(rr)
         self.steps_se.append(gauss_newton_step_se(jac, r[:, 0], x[:, 0], self.lo, self.hi))
-        s2 = rr / max(r.shape[0] - x.shape[0], 1)
+        s2 = _variance(r[:, 0], x.shape[0])
         gained = (self.costs[-1 - STALL_ITER] - rr) / max(s2, 1e-300) if len(self.costs) > STALL_ITER else np.inf
         if self.steps_se[-1] < self.tol_se or gained < self.tol_se ** 2:
             raise _Converged
@@ -219,10 +229,9 @@ def gauss_newton_step_se(jac: np.ndarray, r: np.ndarray, x: np.ndarray, lo: np.n
         return 0.0
     j = jac[:, free]
     lam, vec = np.linalg.eigh(j.T @ j)
-    keep = lam > max(float(lam.max()), 1e-300) * 1e-14  # the cut-off of the intervals
+    keep = lam > max(float(lam.max()), 1e-300) * EIG_FLOOR
     d2 = float(np.sum((vec[:, keep].T @ g[free]) ** 2 / lam[keep]))
-    s2 = float(r @ r) / max(r.size - x.size, 1)
-    return float(np.sqrt(d2 / max(s2, 1e-300)))
+    return float(np.sqrt(d2 / max(_variance(r, x.size), 1e-300)))
 
 
 def _lm(obj: _Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndarray, int]:
@@ -311,13 +320,12 @@ def coarse_windows(windows: np.ndarray, seed: int) -> np.ndarray | None:
 def _intervals(jac, r, x, lo, hi, names, structure: Structure):
     """95 % intervals in physical units from the Jacobian at the optimum."""
     jac = np.asarray(jac)
-    dof = max(r.size - x.size, 1)
-    s2 = float(r @ r) / dof
+    s2 = _variance(r, x.size)
     h = jac.T @ jac
     lam, vec = np.linalg.eigh(h)
     lam_max = max(float(lam.max()), 1e-300)
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # unidentifiable -> inf
-        inv_diag = np.array([np.sum(vec[j, :] ** 2 / np.maximum(lam, lam_max * 1e-14)) for j in range(len(x))])
+        inv_diag = np.array([np.sum(vec[j, :] ** 2 / np.maximum(lam, lam_max * EIG_FLOOR)) for j in range(len(x))])
         half = np.nan_to_num(1.96 * np.sqrt(s2 * inv_diag), nan=np.inf)
     params = {p.name: p for p in structure.params}
     out, warnings = {}, []

@@ -257,8 +257,7 @@ class Predictor:
             self._scratch[key] = [mujoco.MjData(model) for _ in range(max(1, self.nthread))]
         return self._scratch[key]
 
-    def _signals(self, model, full: np.ndarray, ji=None) -> dict[str, np.ndarray]:
-        ji = joint_indices(model)[0] if ji is None else ji
+    def _signals(self, model, full: np.ndarray, ji) -> dict[str, np.ndarray]:
         nw, ns, nx = full.shape
         flat = full.reshape(nw * ns, nx)
         q = flat[:, 1 + ji.motor_qpos]
@@ -279,8 +278,7 @@ class Predictor:
             raise ValueError(f"recording rate {self.m.rate:g} Hz is not 1/timestep divided by an integer")
         return sub
 
-    def _initial_states(self, model, windows, ji=None) -> np.ndarray:
-        ji = joint_indices(model)[0] if ji is None else ji
+    def _initial_states(self, model, windows, ji) -> np.ndarray:
         d = mujoco.MjData(model)
         mujoco.mj_resetData(model, d)
         template = np.empty(mujoco.mj_stateSize(model, FULL))
@@ -313,13 +311,12 @@ class Predictor:
         x0[:, ji.state_start:ji.state_start + NSTATE] = states
         return x0
 
-    def _controls(self, model, windows, delay: float, ji=None) -> np.ndarray:
+    def _controls(self, model, windows, delay: float, ji) -> np.ndarray:
         """Per-step controls: the zero-order-held input averaged over [t - d, t - d + h].
 
         For d = 0 this is exactly the held sample; for d > 0 it is the torque a delayed hold
         delivers over the step, continuous in d so the delay can be fitted by gradients.
         """
-        ji = joint_indices(model)[0] if ji is None else ji
         sub = self._substeps(model)
         h = model.opt.timestep
         n = self.nwin_samples
