@@ -40,7 +40,7 @@ def comparison(windows: int = 8, n: int = 200, tau: bool = True, delay: float = 
     return Comparison(t=t, measured=measured, predicted={"before": before, "after": after},
                       conditions={"q": q, "theta": q / 160, "qd": np.gradient(q, axis=1) * RATE,
                                   "thetad": np.gradient(q / 160, axis=1) * RATE},
-                      heldout=held, cost=cost)
+                      heldout=held, cost=cost, owned=np.ones(t.shape, bool))
 
 
 @pytest.mark.parametrize("true_shift", [0.0, 2.4, -3.7])

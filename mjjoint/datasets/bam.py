@@ -359,8 +359,8 @@ class EncoderPredictor(Predictor):
 def stacked_measured(recordings: list[Recording], window: float) -> Measured:
     """Several logs end to end on one time line, each cut to whole windows of ``window`` s.
 
-    ``Predictor`` tiles the time line with consecutive windows from its start, so with every
-    log a whole number of windows long no window crosses a join; each log's velocities are
+    ``Predictor`` tiles each log afresh from its join (``Measured.joins``), so with every log a
+    whole number of windows long no window crosses a join; each log's velocities are
     differentiated on its own. (Inputs of a delayed window start may reach back across a join
     by at most the delay, inside the excluded warm-up.)
     """
@@ -377,8 +377,9 @@ def stacked_measured(recordings: list[Recording], window: float) -> Measured:
         raise ValueError("the logs to stack must share one sampling rate")
     cat = lambda k: np.concatenate([getattr(m, k)[:keep] for m, keep in parts])
     n_total = sum(keep for _, keep in parts)
+    joins = tuple(np.cumsum([keep for _, keep in parts])[:-1].tolist())
     return Measured(t=np.arange(n_total) / rate, u=cat("u"), q=cat("q"), theta=cat("theta"), tau=None,
-                    qd=cat("qd"), thetad=cat("thetad"), gear_ratio=GEAR_RATIO, rate=rate)
+                    qd=cat("qd"), thetad=cat("thetad"), gear_ratio=GEAR_RATIO, rate=rate, joins=joins)
 
 
 def predictor(recordings: list[Recording], window: float = 0.2, warmup: float = 0.02, seed: int = 0,

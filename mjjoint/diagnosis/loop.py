@@ -162,16 +162,20 @@ def residual_location(predictor: Predictor, structure: Structure, seed: int = 0)
     (pred,) = predictor.predict([structure])
     m = predictor.m
     n = predictor.nwin_samples
-    idx = (predictor.starts[:, None] + np.arange(n)[None, :]).ravel()
+    # One uniform time line over the windows, each sample taken from the window that first
+    # covers it; samples no window predicts (before a join of stacked logs) count as matched.
+    span = np.arange(predictor.starts[0], predictor.starts[-1] + n)
+    at = (predictor.starts[:, None] + np.arange(n)[None, :])[predictor.owned] - span[0]
     meas, sim = {}, {}
     for s in predictor.signals:
         # q drifts within a window by construction: locate on its deviation from the window start.
         start = predictor.meas[s][:, :1] if s == "q" else 0.0
-        meas[s] = (predictor.meas[s] - start).ravel()
-        sim[s] = np.nan_to_num(pred[s] - start).ravel()
+        meas[s], sim[s] = np.zeros(len(span)), np.zeros(len(span))
+        meas[s][at] = (predictor.meas[s] - start)[predictor.owned]
+        sim[s][at] = np.nan_to_num(pred[s] - start)[predictor.owned]
     cond = operating_conditions(m.t, m.q, m.theta, m.u, m.gear_ratio, m.tau)
-    cond = {k: np.asarray(v)[idx] for k, v in cond.items()}
-    t = m.t[idx]
+    cond = {k: np.asarray(v)[span] for k, v in cond.items()}
+    t = m.t[span]
     return locate(t, meas, sim, cond, seed=seed).as_dict()
 
 

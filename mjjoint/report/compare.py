@@ -1,7 +1,8 @@
 """Measured windows next to the windowed predictions of one or more fitted models.
 
-The windows tile the recording (each starts where the last ended, from the measured state),
-so their samples in order form one time line; predictions restart at every window start.
+The windows tile the recording (each starts where the last ended, from the measured state, or
+a warmup's worth earlier when that keeps its start off an input step), so their ``owned``
+samples in order form one time line; predictions restart at every window start.
 Everything the plots, the HTML page and the .rrd show comes from one ``Comparison``.
 """
 from __future__ import annotations
@@ -29,6 +30,7 @@ class Comparison:
     conditions: dict[str, np.ndarray]           # qd, thetad, theta, q of the recording
     heldout: np.ndarray                         # bool per window
     cost: np.ndarray                            # bool per sample: used in the fit cost (after warmup)
+    owned: np.ndarray                           # bool per window and sample: not in an earlier window
 
     @property
     def signals(self) -> tuple[str, ...]:
@@ -53,7 +55,7 @@ def compare(predictor: Predictor, models: dict[str, Structure]) -> Comparison:
         predicted={label: {s: p[s] for s in measured} for label, p in zip(models, preds)},
         conditions={k: v[idx] for k, v in (("q", m.q), ("theta", m.theta), ("qd", m.qd), ("thetad", m.thetad))
                     if v is not None},
-        heldout=np.asarray(predictor.holdout, bool).copy(), cost=cost)
+        heldout=np.asarray(predictor.holdout, bool).copy(), cost=cost, owned=predictor.owned.copy())
 
 
 def worst_signal(nrmse: dict[str, float], available) -> str:

@@ -36,7 +36,8 @@ def write_rrd(path: Path, cmp: Comparison, labels, recording_name: str) -> Path:
     rec = rr.RecordingStream(APP_ID)
     rec.set_sinks(rr.FileSink(str(path)), default_blueprint=rrb.Blueprint(rrb.Vertical(*views)))
     rec.send_recording_name(recording_name)
-    time = [sim_time(cmp.t.ravel())]
+    own = cmp.owned  # one value per time stamp
+    time = [sim_time(cmp.t[own])]
     try:
         for root in roots:
             source = cmp.measured if root == "measured" else cmp.predicted[root]
@@ -44,8 +45,8 @@ def write_rrd(path: Path, cmp: Comparison, labels, recording_name: str) -> Path:
                 entity = f"{root}/{s}"
                 rec.log(entity, rr.SeriesLines(names=f"{root} {s}", colors=[colors[root]]), static=True)
                 rec.send_columns(entity, indexes=time,
-                                 columns=rr.Scalars.columns(scalars=np.asarray(source[s], float).ravel()))
-        held = np.repeat(cmp.heldout.astype(float), cmp.t.shape[1])
+                                 columns=rr.Scalars.columns(scalars=np.asarray(source[s], float)[own]))
+        held = np.repeat(cmp.heldout.astype(float), cmp.t.shape[1]).reshape(cmp.t.shape)[own]
         rec.log("windows/heldout", rr.SeriesLines(names="held out"), static=True)
         rec.send_columns("windows/heldout", indexes=time, columns=rr.Scalars.columns(scalars=held))
         rec.flush()
