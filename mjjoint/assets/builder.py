@@ -83,6 +83,12 @@ class ArmSpec:
         """The unit of a quantity given in the motor's rotary units (the same here)."""
         return rotary
 
+    @property
+    def link_parameter(self) -> str:
+        """How identification fits the link's inertia: as the tip mass (the payload is what is
+        uncertain; it moves the inertia both ways) or, on a link without one, the hub inertia."""
+        return "mass.tip" if self.tip_mass > 0 else "inertia.link"
+
 
 def set_input(act, k_m: float, offset: float, delay: float) -> None:
     """Motor input u = k_m ctrl + offset, applied ``delay`` late (native actuator terms).

@@ -74,8 +74,9 @@ def _fitted_value(case: Case, structure: Structure) -> float | None:
         return None
     if name == "torque_ripple.amplitude":
         return float(np.hypot(structure.values["torque_ripple.a"], structure.values["torque_ripple.b"]))
-    if name == "gravity.g":  # compare gravity torques: the truth's link mass differs from nominal
-        return float(structure.values["gravity.g"]) * NOMINAL.tip_mass / case.truth.nominal.tip_mass
+    if name == "gravity.g":  # compare gravity torques: the truth's tip mass differs from nominal
+        mass = float(structure.values.get("mass.tip", NOMINAL.tip_mass))
+        return float(structure.values["gravity.g"]) * mass / case.truth.nominal.tip_mass
     return float(structure.values[name])
 
 

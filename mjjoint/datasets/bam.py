@@ -283,8 +283,8 @@ SERVO_V_EPS = 5.0
 # limit grows with the fitted rotor inertia, and unstable candidates score as worst.
 SERVO_TIMESTEP = 5e-4
 # The arm is not logged (BAM's Pendulum reads "arm_mass", which these logs lack): a light
-# 0.1 m arm of 10 g; hub: the output horn and screws, 1e-5 kg m^2. Fitted inertia.link and
-# gravity.g absorb both.
+# 0.1 m arm of 10 g; hub: the output horn and screws, 1e-5 kg m^2. Fitted inertia.link
+# (``ServoArm.link_parameter``) and gravity.g absorb both.
 ROD_MASS = 0.01
 HUB_INERTIA = 1e-5
 
@@ -309,6 +309,11 @@ class ServoArm(ArmSpec):
     @property
     def scales(self) -> dict[str, float]:
         return {"force": self.force_scale, "speed": self.speed_scale, "position": self.speed_scale * 1.0}
+
+    @property
+    def link_parameter(self) -> str:
+        """The hub inertia: the logged mass is known, the unlogged arm can only add to it."""
+        return "inertia.link"
 
 
 class ServoStructure(Structure):

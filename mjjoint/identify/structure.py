@@ -8,6 +8,7 @@ import mujoco
 import numpy as np
 
 from ..assets import load_model
+from ..assets.drive import DriveSpec
 from ..assets.plant import build_plant
 from .effects import EFFECTS, Model, Param, Plant, base_params, check_effects, minimal_model, plant_effects
 
@@ -33,6 +34,8 @@ class Structure:
         vals["inertia.motor"] = nominal.motor_inertia
         if "inertia.link" in vals:
             vals["inertia.link"] = nominal.hub_inertia
+        if "mass.tip" in vals:
+            vals["mass.tip"] = nominal.tip_mass
         vals.update(values or {})
         return cls(effects, vals, nominal, float(gear_ratio), dict(settings or {}))
 
@@ -74,8 +77,13 @@ class Structure:
     def model_params(self) -> Model:
         """The (ArmSpec, JointParams) this structure describes."""
         plant, joint = minimal_model(self.nominal, self.gear_ratio)
-        inertias = {"mass": self.values["inertia.motor"]} if "inertia.link" not in self.values else {
-            "motor_inertia": self.values["inertia.motor"], "hub_inertia": self.values["inertia.link"]}
+        vals = self.values
+        if isinstance(plant, DriveSpec):
+            inertias = {"mass": vals["inertia.motor"]}
+        elif "mass.tip" in vals:
+            inertias = {"motor_inertia": vals["inertia.motor"], "tip_mass": vals["mass.tip"]}
+        else:
+            inertias = {"motor_inertia": vals["inertia.motor"], "hub_inertia": vals["inertia.link"]}
         model = (dataclasses.replace(plant, **inertias), joint)
         v = {**self.values, **self.settings}
         for name in self.effects:
