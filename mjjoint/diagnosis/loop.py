@@ -16,8 +16,9 @@ predicts worst are where missing physics shows, and a robust fit would discount 
 outliers (20 s dynamic_friction case, robust fits throughout: 2SEP still lowers the held-out
 cost by 81 %, but the paired test over windows gives p 0.064 instead of 0.003, and 2SEP is not
 named). Once the structure is settled, the windows it still misses by orders of magnitude are
-ones no candidate explains (a start state off at an input step), and least squares would let
-them bias the parameters (torque_ripple case: ripple 8 % small, 7 deg off).
+ones no candidate explains (a start state the recording cannot give, such as 2SEP's lag
+memory of a resting motor), and least squares would let them bias the parameters
+(torque_ripple case, before window starts were moved off input steps: ripple 8 % small).
 Stopping rule (documented in docs/diagnosis.md): a candidate is accepted only if, on the
 held-out windows, it lowers the cost by at least ``min_gain`` (relative) and ``min_abs``
 (absolute, in squared NRMSE), the per-window reductions are consistent (one-sided Wilcoxon
