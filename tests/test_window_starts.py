@@ -10,13 +10,14 @@ import mujoco
 import numpy as np
 import pytest
 
+from mjjoint.assets.drive import DriveSpec
 from mjjoint.identify import windows
 from mjjoint.identify.fit import window_costs
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign, _window_starts
 from mjjoint.recordings import Recording
 
-from test_drive import TRUTH, drive_model
+from test_drive import FRICTION, TRUTH, drive_model
 
 RATE = 1000.0
 HALF, WARMUP = 3, 20  # samples: the 7 ms stencil's half width and the 20 ms warmup at 1 kHz
@@ -58,7 +59,7 @@ def test_owned_samples_tile_the_recording_once():
     rec = Recording(t=t, u=u, q=q, theta=q)
     p = Predictor(Measured.from_recording(rec, 1.0, output=False), WindowDesign(length=0.25))
     assert (np.diff(p.starts) < 250).sum() == 2  # the two steps' windows overlap their predecessors
-    tt = p.m.t[p.starts[:, None] + np.arange(p.nwin_samples)[None, :]][p.owned]
+    tt = p.m.t[p.samples[p.owned]]
     assert tt[0] == t[0] and np.all(np.abs(np.diff(tt) - 1 / RATE) < 1e-9)
     assert len(tt) == len(p.starts) * p.nwin_samples - (p.starts[:-1] + 250 - p.starts[1:]).sum()
 
@@ -82,8 +83,6 @@ def _stepped_drive_recording() -> Recording:
 
 
 def test_the_true_model_predicts_step_windows_once_their_starts_are_moved(monkeypatch):
-    from mjjoint.assets.drive import DriveSpec
-    from test_drive import FRICTION
     rec = _stepped_drive_recording()
     truth = Structure.create(("coulomb_friction", "viscous_friction", "input_offset"), DriveSpec(), 1.0).with_values(
         {"inertia.motor": TRUTH.mass, "coulomb_friction.fc": FRICTION.fc, "viscous_friction.sigma": FRICTION.sigma,

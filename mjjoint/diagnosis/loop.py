@@ -166,7 +166,7 @@ def residual_location(predictor: Predictor, structure: Structure, seed: int = 0)
     # One uniform time line over the windows, each sample taken from the window that first
     # covers it; samples no window predicts (before a join of stacked logs) count as matched.
     span = np.arange(predictor.starts[0], predictor.starts[-1] + n)
-    at = (predictor.starts[:, None] + np.arange(n)[None, :])[predictor.owned] - span[0]
+    at = predictor.samples[predictor.owned] - span[0]
     meas, sim = {}, {}
     for s in predictor.signals:
         # q drifts within a window by construction: locate on its deviation from the window start.

@@ -220,9 +220,10 @@ class Predictor:
             raise ValueError(f"recording of {measured.t[-1] - measured.t[0]:.2f} s is too short for "
                              f"{design.length} s windows (need at least 8 windows)")
         self.starts = starts
+        self.samples = starts[:, None] + np.arange(n)[None, :]  # recording sample of each window sample
         # The samples each window is the first to cover: a moved start's warmup repeats the end
         # of the window before it; views of the whole recording take each sample once.
-        lead = np.maximum(np.r_[0, self.starts[:-1] + n - self.starts[1:]], 0)
+        lead = np.maximum(np.r_[0, starts[:-1] + n - starts[1:]], 0)
         self.owned = np.arange(n)[None, :] >= lead[:, None]
         order = np.random.default_rng(design.seed).permutation(len(starts))
         self.holdout = np.zeros(len(starts), bool)
@@ -243,7 +244,7 @@ class Predictor:
 
     # ---- measured ----------------------------------------------------------------------
     def measured_windows(self) -> dict[str, np.ndarray | None]:
-        idx = self.starts[:, None] + np.arange(self.nwin_samples)[None, :]
+        idx = self.samples
         m = self.m
         pick = lambda x: None if x is None else x[idx]  # noqa: E731
         return {"q": m.q[idx], "delta": pick(m.delta), "theta": pick(m.theta), "tau": pick(m.tau)}

@@ -45,7 +45,7 @@ def compare(predictor: Predictor, models: dict[str, Structure]) -> Comparison:
     """Predict every window with each model (one batched rollout per model signature)."""
     preds = predictor.predict(list(models.values()))
     m = predictor.m
-    idx = predictor.starts[:, None] + np.arange(predictor.nwin_samples)[None, :]
+    idx = predictor.samples
     measured = {s: np.asarray(v) for s, v in predictor.meas.items() if v is not None}
     measured = {s: measured[s] for s in ("q", "theta", "delta", "tau") if s in measured}
     cost = np.zeros(predictor.nwin_samples, bool)

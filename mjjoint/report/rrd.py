@@ -46,7 +46,7 @@ def write_rrd(path: Path, cmp: Comparison, labels, recording_name: str) -> Path:
                 rec.log(entity, rr.SeriesLines(names=f"{root} {s}", colors=[colors[root]]), static=True)
                 rec.send_columns(entity, indexes=time,
                                  columns=rr.Scalars.columns(scalars=np.asarray(source[s], float)[own]))
-        held = np.repeat(cmp.heldout.astype(float), cmp.t.shape[1]).reshape(cmp.t.shape)[own]
+        held = np.broadcast_to(cmp.heldout[:, None], cmp.t.shape)[own].astype(float)
         rec.log("windows/heldout", rr.SeriesLines(names="held out"), static=True)
         rec.send_columns("windows/heldout", indexes=time, columns=rr.Scalars.columns(scalars=held))
         rec.flush()
