@@ -15,7 +15,7 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 
 from .assets import load_model
-from .coupling.kernels import joint_traces
+from .coupling.kernels import joint_traces, settled_states
 from .coupling.layout import NSTATE, STATE_NAMES
 from .coupling.plugin import PLUGIN_NAME, block_for
 from .params import check
@@ -182,12 +182,13 @@ class Simulator:
         qvel = states[:, 1 + nq:1 + nq + self.model.nv]
         out = []
         for j, ji in enumerate(self.joints):
-            st = np.ascontiguousarray(states[:, ji.state_start:ji.state_start + NSTATE])
             zero = np.zeros(len(states))
             q = qpos[:, ji.motor_qpos] if ji.motor_qpos >= 0 else zero
             theta = qpos[:, ji.link_qpos] if ji.link_qpos >= 0 else zero
             qd = qvel[:, ji.motor_dof] if ji.motor_dof >= 0 else zero
             thd = qvel[:, ji.link_dof] if ji.link_dof >= 0 else zero
+            st = settled_states(ji.block, np.ascontiguousarray(states[:, ji.state_start:ji.state_start + NSTATE]),
+                                states[:, 0], q, qd, theta, thd, self.model.opt.timestep)
             tau, fric, load = joint_traces(ji.block, st, q, qd, theta, thd, ji.step_over_inertia(self.model))
             out.append(Trace(t=states[:, 0].copy(), u=u2[:, j].copy(), q=q.copy(), theta=theta.copy(),
                              qd=qd.copy(), thetad=thd.copy(), tau=tau, friction=fric, load_friction=load,

@@ -5,7 +5,7 @@ One process, single thread. Each configuration is the shipped arm (build_arm def
             rod springs and actuator kept): the floor every variant is compared with;
   plugin    the full nonlinear joint: 2SEP + Bouc-Wen transmission + load friction;
   spring    the plugin with a linear spring only (every other term off): the cost of the
-            plugin mechanism (two numba callbacks per step) apart from the physics;
+            plugin mechanism (one numba callback per step) apart from the physics;
   dcmotor   no plugin, MuJoCo's native <dcmotor> on the motor joint with LuGre friction and
             cogging (mujoco >= 3.17), sized like the plugin's defaults;
   callback  no plugin, the same physics from Python: mjcb_passive calls the numba kernels

@@ -95,8 +95,8 @@ def stored_energy(sim: Simulator, params: JointParams, states: np.ndarray) -> np
     out = np.empty(len(states))
     for i, s in enumerate(states):
         mujoco.mj_setState(m, d, s, FULL)
-        mujoco.mj_forward(m, d)
-        plugin = s[ji.state_start:ji.state_start + 6]
+        mujoco.mj_forward(m, d)  # brings the plugin states to the state's time
+        plugin = d.plugin_state[m.plugin_stateadr[ji.instance]:]
         delta = ref.engaged(d.qpos[ji.motor_qpos] / ji.gear_ratio - d.qpos[ji.link_qpos], t.backlash)
         e = d.energy[0] + d.energy[1] + t.mu * ref.spring_potential(delta, t.k1, t.k2, t.k3)
         if hyst is not None:

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 import reference as ref
 from mjjoint.coupling import kernels
-from mjjoint.coupling.layout import NSTATE, pack
+from mjjoint.coupling.layout import AT, NSTATE, pack
 from mjjoint.joint import JointParams
 from mjjoint.physics import boucwen, load, ripple, stribeck, transmission, twosep
 from mjjoint.physics.boucwen import BoucWen
@@ -239,7 +239,7 @@ def test_joint_forces_and_advance(p, s, m, h, hj):
     n = p.transmission.gear_ratio
     q = n * (theta + delta)
     blk = pack(p, 0, 0, 1, 1)
-    st_arr = np.array(s.as_list())
+    st_arr = np.array(s.as_list() + [np.nan])  # AT: fresh states
     fm, fl = kernels.joint_forces(blk, st_arr, q, wq, theta, wtheta, hj)
     rm, rl = ref.joint_forces(p, s, q, wq, theta, wtheta, hj)
     t = p.transmission
@@ -251,6 +251,27 @@ def test_joint_forces_and_advance(p, s, m, h, hj):
     want = ref.joint_advance(p, s, q, wq, theta, wtheta, h).as_list()
     assert st_arr.shape == (NSTATE,)
     assert all(close(g, r, 100.0 * (1 + abs(theta))) for g, r in zip(st_arr, want)), (list(st_arr), want)
+
+
+@SETTINGS
+@given(p=joint_params(), s=joint_states(), m=joint_motion(), h=finite(1e-5, 2e-3))
+def test_catch_up_advances_once_per_new_time(p, s, m, h):
+    """compute's catch-up is the reference step exactly when time has moved since the states'
+    time, and nothing on a repeated evaluation or for fresh (NaN-stamped) states."""
+    theta, wq, delta, wtheta = m
+    q = p.transmission.gear_ratio * (theta + delta)
+    blk = pack(p, 0, 0, 1, 1)
+    want = ref.joint_advance(p, s, q, wq, theta, wtheta, h).as_list()
+    for at, t, moved in ((0.0, h, True), (h, h, False), (np.nan, h, False)):
+        st_arr = np.array(s.as_list() + [at])
+        kernels.joint_catch_up(blk, st_arr, q, wq, theta, wtheta, t, h)
+        assert st_arr[AT] == t
+        again = st_arr.copy()
+        kernels.joint_catch_up(blk, again, q, wq, theta, wtheta, t, h)
+        np.testing.assert_array_equal(again, st_arr)  # a second evaluation at t changes nothing
+        expect = want if moved else s.as_list()
+        assert all(close(g, r, 100.0 * (1 + abs(theta))) for g, r in zip(st_arr[:AT], expect)), \
+            (list(st_arr), expect)
 
 
 # ================================ Part 2: physics of the kernels =============================
@@ -486,7 +507,7 @@ def test_friction_history(w, h, p):
     for wi in w:
         s = list(ref.twosep_step(*s, wi, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym))
         want.append(s)
-    got = kernels.friction_history(blk, np.asarray(w), h, np.array([0.01, 0.0, 0.0, 0.0, 0.0, 0.0]))
+    got = kernels.friction_history(blk, np.asarray(w), h, np.array([0.01, 0.0, 0.0, 0.0, 0.0, 0.0, np.nan]))
     assert got.shape == (len(w), NSTATE)
     for g, r in zip(got, want):
         assert all(close(a, b, 100.0) for a, b in zip(g[:5], r)), (list(g), r)

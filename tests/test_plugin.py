@@ -11,7 +11,7 @@ from mujoco import rollout
 
 from mjjoint.assets import ArmSpec, build_arm, load_model
 from mjjoint.coupling import abi
-from mjjoint.coupling.layout import NSTATE
+from mjjoint.coupling.layout import AT, NSTATE, X
 from mjjoint.joint import JointParams
 from mjjoint.physics.transmission import Transmission
 from mjjoint.physics.twosep import TwoSEP
@@ -90,15 +90,21 @@ def test_copy_carries_states_and_parameters(model):
     np.testing.assert_array_equal(a, b)
 
 
+def _assert_fresh(data):
+    """Zero states that hold at whatever time they are next evaluated (AT is NaN)."""
+    np.testing.assert_array_equal(data.plugin_state[:AT], 0.0)
+    assert np.isnan(data.plugin_state[AT])
+
+
 def test_reset_and_keyframe_reset_clear_states(model):
     data = mujoco.MjData(model)
     _drive(model, data, 300, seed=5)
-    assert np.any(data.plugin_state != 0.0)
+    assert np.any(data.plugin_state[:AT] != 0.0)
     mujoco.mj_resetData(model, data)
-    np.testing.assert_array_equal(data.plugin_state, 0.0)
+    _assert_fresh(data)
     _drive(model, data, 300, seed=5)
     mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
-    np.testing.assert_array_equal(data.plugin_state, 0.0)
+    _assert_fresh(data)
     # A reset run reproduces a fresh run exactly.
     fresh = mujoco.MjData(model)
     a, _ = _drive(model, data, 300, seed=6)
@@ -145,22 +151,33 @@ def test_model_at_a_recycled_address_with_another_config_fails_loudly(model):
     np.testing.assert_array_equal(again, good)
 
 
-def test_advance_without_compute_takes_no_other_models_row():
-    """compute marks the row it validated for this step's advance; an advance with no compute
-    before it (springs and dampers disabled: no passive stage) on data whose mark another model left validates anew."""
-    a = load_model(build_arm(joint=JointParams(friction=TwoSEP(fc=0.15, fs=0.2, b=5.0))))
-    b = load_model(build_arm(joint=JointParams(friction=TwoSEP(fc=0.02, fs=0.03, b=500.0))))
-    a.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_SPRING | mujoco.mjtDisableBit.mjDSBL_DAMPER)
-    stale, clean = mujoco.MjData(a), mujoco.MjData(a)
-    for data in (stale, clean):
-        data.qvel[0] = 30.0
-        data.ctrl[0] = 0.5
-    mujoco.mj_forward(b, stale)  # b's compute marks b's row in stale's plugin_data
-    for _ in range(50):
-        mujoco.mj_step(a, stale)
-        mujoco.mj_step(a, clean)
-    assert np.any(clean.plugin_state != 0.0)
-    np.testing.assert_array_equal(stale.plugin_state, clean.plugin_state)
+def test_extra_evaluations_between_steps_change_nothing(model):
+    """compute advances the states once per new time: mj_forward (sensors, rendering), repeated
+    or not, between steps leaves the trajectory bit-identical, and brings plugin_state to the
+    states at d.time that the stepping reference holds."""
+    plain, probed = mujoco.MjData(model), mujoco.MjData(model)
+    a, current = _drive(model, plain, 200, seed=11)
+    b = np.empty_like(a)
+    settled = []
+    for i, c in enumerate(current):
+        probed.ctrl[0] = c
+        mujoco.mj_step(model, probed)
+        mujoco.mj_getState(model, probed, b[i], FULL)
+        mujoco.mj_forward(model, probed)
+        mujoco.mj_forward(model, probed)
+        settled.append(probed.plugin_state[:AT].copy())
+    np.testing.assert_array_equal(a, b)
+    # What mj_forward left is the pending step applied: the next step's start states.
+    np.testing.assert_array_equal(np.array(settled[:-1]), a[1:, -NSTATE:-NSTATE + AT])
+    assert np.ptp(np.array(settled)[:, X]) > 0.0
+
+
+def test_rk4_is_refused_with_a_one_line_error():
+    spec = build_arm()
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    with pytest.raises(ValueError, match="RK4") as err:
+        load_model(spec)
+    assert "\n" not in str(err.value)
 
 
 def test_threaded_rollout_of_two_parameter_sets_equals_sequential_runs():

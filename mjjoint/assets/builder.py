@@ -184,6 +184,11 @@ def load_model(source: str | Path | mujoco.MjSpec | None = None, **kwargs) -> mu
             except ValueError as exc:
                 raise ValueError(f"plugin instance {plugin.name!r}: {exc}") from None
     model = spec.compile()
+    if model.nplugin and model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
+        # The internal states advance once a step from its end velocities, q_new = q + h w_new
+        # (coupling.kernels.joint_advance): true of Euler and the implicit integrators only.
+        raise ValueError("integrator='RK4' is not supported with mjjoint.joint; use Euler, implicit "
+                         "or implicitfast")
     register_model(model)
     check_model_stability(model)
     return model

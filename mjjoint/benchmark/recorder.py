@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from ..assets import ArmSpec, build_arm, load_model
-from ..coupling.kernels import transmitted
+from ..coupling.kernels import joint_catch_up, transmitted
 from ..coupling.layout import NSTATE
 from ..joint import JointParams
 from ..params import check
@@ -109,7 +109,9 @@ def record(arm: ArmSpec, joint: JointParams, program: LabProgram = LabProgram(),
         q_prev = q
         u = controller.kp * (q_ref[i] - q) - controller.kd * v_filt
         u = min(max(u, -controller.u_max), controller.u_max)
-        st = data.plugin_state[adr:adr + NSTATE]
+        st = data.plugin_state[adr:adr + NSTATE].copy()
+        joint_catch_up(ji.block, st, data.qpos[ji.motor_qpos], data.qvel[ji.motor_dof],
+                       data.qpos[ji.link_qpos], data.qvel[ji.link_dof], data.time, model.opt.timestep)
         tau = transmitted(ji.block, st, data.qpos[ji.motor_qpos], data.qvel[ji.motor_dof],
                           data.qpos[ji.link_qpos], data.qvel[ji.link_dof])
         cols["t"][i], cols["u"][i], cols["q"][i], cols["theta"][i] = data.time, u, q, th

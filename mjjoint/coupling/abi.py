@@ -19,7 +19,7 @@ import numpy as np
 
 MUJOCO_DIR = Path(mujoco.__file__).parent
 _PTR = 8
-_TIMESTEP_PROBE = 0.000123456789012345  # a value no default option field holds
+_PROBE = 0.000123456789012345  # a value no default field of mjOption or mjData holds
 
 
 @functools.lru_cache(maxsize=None)
@@ -90,6 +90,7 @@ class Offsets:
     m_plugin_attr: int
     m_plugin_attradr: int
     m_timestep: int
+    d_time: int
 
 
 _PROBE_XML = """<mujoco><worldbody><body><joint name="a"/><geom size=".1"/>
@@ -113,23 +114,32 @@ def offsets() -> Offsets:
     for name in ("jnt_type", "jnt_dofadr", "dof_invweight0", "body_mass", "dof_damping", "actuator_gear"):
         if _read_u64(m._address + mm[name]) != getattr(m, name).ctypes.data:
             raise RuntimeError(f"mjModel.{name} offset check failed for mujoco {mujoco.__version__}")
-    # opt.timestep lives in the embedded mjOption before the pointer run: find it by value.
-    saved = m.opt.timestep
-    m.opt.timestep = _TIMESTEP_PROBE
-    raw = ctypes.string_at(m._address, mm["buffer"])
-    hits = [i for i in range(0, len(raw) - 7, 8)
-            if np.frombuffer(raw[i:i + 8], dtype=np.float64)[0] == _TIMESTEP_PROBE]
-    m.opt.timestep = saved
-    if len(hits) != 1:
-        raise RuntimeError(f"could not locate mjModel.opt.timestep in mujoco {mujoco.__version__}")
+    # opt.timestep (in the embedded mjOption) and d->time precede the pointer runs: found by value.
+    m_timestep = _inline_double(m, "opt.timestep", mm["buffer"])
+    d_time = _inline_double(d, "time", dd["buffer"])
     return Offsets(
         d_qpos=dd["qpos"], d_qvel=dd["qvel"], d_qfrc_passive=dd["qfrc_passive"],
         d_plugin_state=dd["plugin_state"], d_plugin_data=dd["plugin_data"],
         m_jnt_type=mm["jnt_type"], m_jnt_qposadr=mm["jnt_qposadr"], m_jnt_dofadr=mm["jnt_dofadr"],
         m_dof_invweight0=mm["dof_invweight0"],
         m_plugin_stateadr=mm["plugin_stateadr"], m_plugin_attr=mm["plugin_attr"],
-        m_plugin_attradr=mm["plugin_attradr"], m_timestep=hits[0],
+        m_plugin_attradr=mm["plugin_attradr"], m_timestep=m_timestep, d_time=d_time,
     )
+
+
+def _inline_double(struct, name: str, before: int) -> int:
+    """Offset of the double ``struct.<name>`` (a dotted path) within its first ``before`` bytes,
+    located by setting it to a probe value and finding the one place that holds it."""
+    *path, leaf = name.split(".")
+    owner = functools.reduce(getattr, path, struct)
+    saved = getattr(owner, leaf)
+    setattr(owner, leaf, _PROBE)
+    raw = np.frombuffer(ctypes.string_at(struct._address, before - before % 8), dtype=np.float64)
+    setattr(owner, leaf, saved)
+    hits = np.flatnonzero(raw == _PROBE)
+    if len(hits) != 1:
+        raise RuntimeError(f"could not locate {type(struct).__name__}.{name} in mujoco {mujoco.__version__}")
+    return int(hits[0]) * 8
 
 
 class MjpPlugin(ctypes.Structure):

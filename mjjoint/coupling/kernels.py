@@ -1,8 +1,9 @@
 """The joint's per-step physics on a parameter block and a state slice (pure, numba).
 
-``joint_forces`` is what the plugin's compute adds to qfrc_passive; ``joint_advance`` is what
-its advance does to the internal states. Both take plain arrays, so the offline tools (traces,
-energy, tests) evaluate the very functions the plugin runs.
+``joint_forces`` is what the plugin's compute adds to qfrc_passive; ``joint_advance`` is the
+step's update of the internal states, which compute applies first, once per step
+(``joint_catch_up``). All take plain arrays, so the offline tools (traces, energy, tests)
+evaluate the very functions the plugin runs.
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from ..physics.ripple import ripple_torque
 from ..physics.stribeck import static_friction
 from ..physics.transmission import engaged, transmission_torque
 from ..physics.twosep import twosep_force_implicit, twosep_step
-from .layout import (ASYM, B, BACKLASH, BW_A, BW_BETA, BW_GAMMA, BW_N, DAMP, FC, FKIND,
+from .layout import (ASYM, AT, B, BACKLASH, BW_A, BW_BETA, BW_GAMMA, BW_N, DAMP, FC, FKIND,
                      FRICTION_2SEP, FRICTION_STATIC, FS, GEAR, HYST, K, K1, K2, K3, L_FC,
                      L_VEPS, L_VISC, LOAD, MU, OMEGA, QR, R_AMP, R_K, R_PHASE, RIPPLE,
                      SHAPE, SIGMA, VEPS, VS, WSIGN, X, Z1, Z2)
@@ -70,6 +71,33 @@ def joint_advance(blk, st, q, wq, theta, wtheta, h):
         n = blk[GEAR]
         delta = q / n - theta
         st[X] = hysteresis_step(blk, st[X], delta - (wq / n - wtheta) * h, delta)
+
+
+@kernel
+def joint_catch_up(blk, st, q, wq, theta, wtheta, t, h):
+    """Bring the states, last brought to ``st[AT]``, to time ``t``: the pending step's
+    ``joint_advance`` if a step has passed since, none at the same time (a repeated
+    mj_forward), none for fresh states (``st[AT]`` NaN: a reset, states set by hand).
+
+    The plugin does this at the start of compute rather than in a MuJoCo advance callback:
+    same states, same forces, one callback a step instead of two (docs/design.md). So after
+    mj_step, ``plugin_state`` still holds the states of the step's start; ``settled_states``
+    gives them at the step's end.
+    """
+    at = st[AT]
+    if at == at and at != t:
+        joint_advance(blk, st, q, wq, theta, wtheta, h)
+    st[AT] = t
+
+
+@kernel
+def settled_states(blk, states, t, q, wq, theta, wtheta, h):
+    """Copies of plugin-state rows (n, NSTATE) recorded at times ``t``, each caught up to its own
+    time (``joint_catch_up``): the internal states at the recorded instants."""
+    out = states.copy()
+    for i in range(out.shape[0]):
+        joint_catch_up(blk, out[i], q[i], wq[i], theta[i], wtheta[i], t[i], h)
+    return out
 
 
 @kernel

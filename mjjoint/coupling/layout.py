@@ -1,8 +1,9 @@
 """Memory layouts shared by the Python side and the numba callbacks.
 
-``BLOCK``: the per-instance float64 parameter block (``d->plugin_data[instance]`` points to
-it), built once per mjData from the instance's MJCF config. ``STATE``: the instance's slice
-of ``d->plugin_state``, i.e. the internal states MuJoCo saves, restores, resets and rolls out.
+``BLOCK``: the per-instance float64 parameter block (a ``registry`` row, which
+``d->plugin_data[instance]`` caches), built once per model from the instance's MJCF config.
+``STATE``: the instance's slice of ``d->plugin_state``, i.e. the internal states MuJoCo saves,
+restores, resets and rolls out.
 """
 from __future__ import annotations
 
@@ -22,10 +23,11 @@ from ..physics.twosep import TwoSEP
 BLOCK_LEN = 34
 FRICTION_NONE, FRICTION_STATIC, FRICTION_2SEP = 0.0, 1.0, 2.0
 
-# Plugin state indices: the 2SEP states (twosep.Z1 ... WSIGN) then the Bouc-Wen x.
-Z1, Z2, OMEGA, QR, WSIGN, X = range(6)
-NSTATE = 6
-STATE_NAMES = ("z1", "z2", "omega", "q_r", "w_sign", "x")
+# Plugin state indices: the 2SEP states (twosep.Z1 ... WSIGN), the Bouc-Wen x, then the time
+# the states hold at (NaN: at whatever time they are next evaluated; kernels.joint_catch_up).
+Z1, Z2, OMEGA, QR, WSIGN, X, AT = range(7)
+NSTATE = 7
+STATE_NAMES = ("z1", "z2", "omega", "q_r", "w_sign", "x")  # the physical ones, before AT
 
 
 def pack(params: JointParams, motor_qpos: int, motor_dof: int, link_qpos: int, link_dof: int) -> np.ndarray:

@@ -1,9 +1,10 @@
 """The ``mjjoint.joint`` MuJoCo engine plugin: joint physics injected with no per-step Python.
 
-Per step, MuJoCo calls two numba ``cfunc``s of this module: ``compute`` (passive stage) adds
-the joint's torques to ``qfrc_passive``, ``advance`` (after integration) updates the internal
-friction and hysteresis states held in ``plugin_state`` — so ``mj_getState``, ``mj_setState``,
-``mj_resetData``, keyframes, ``copy.copy`` and multithreaded ``mujoco.rollout`` all carry them.
+Per step, MuJoCo calls one numba ``cfunc`` of this module: ``compute`` (passive stage) first
+brings the internal friction and hysteresis states, held in ``plugin_state``, over the step
+just taken (``kernels.joint_catch_up``), then adds the joint's torques to ``qfrc_passive``.
+The states live in MuJoCo's state, so ``mj_getState``, ``mj_setState``, ``mj_resetData``,
+keyframes, ``copy.copy`` and multithreaded ``mujoco.rollout`` all carry them.
 
 Once per mjData, a Python ``init`` parses the instance's MJCF ``<config>`` with
 ``JointParams.from_config`` (the validation users get everywhere else), resolves the joint
@@ -27,10 +28,10 @@ from numba import cfunc, njit, types
 
 from ..joint import GROUND, JointParams, config_keys
 from . import abi, registry
-from .kernels import joint_advance, joint_forces
-from .layout import BLOCK_LEN, LD, LQ, MD, MQ, NSTATE, pack
+from .kernels import joint_catch_up, joint_forces
+from .layout import AT, BLOCK_LEN, LD, LQ, MD, MQ, NSTATE, pack
 from .pointers import _addr, f64_at, f64_ptr, f64_ptr_array, field, i32_array, u64_array
-from .registry import find_row, keys_match, row_matches
+from .registry import find_row, row_matches
 
 PLUGIN_NAME = "mjjoint.joint"
 _MJOBJ_JOINT = int(mujoco.mjtObj.mjOBJ_JOINT)
@@ -39,8 +40,6 @@ _SINGLE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE
 _lock = threading.Lock()
 _registered: dict[str, object] = {}  # keeps every callback object alive for the process
 _next_row = 0
-# Top bit of a plugin_data slot: the cached row was validated by this step's compute.
-CHECKED = np.uint64(1 << 63)
 
 
 def _read_config(m_addr: int, instance: int) -> dict[str, str]:
@@ -144,8 +143,8 @@ def _init(m_addr, d_addr, instance):
 
 
 def _compile_hot_callbacks(off: abi.Offsets):
-    """numba cfuncs for nstate, reset, compute and advance, with the offsets baked in."""
-    d_qpos, d_qvel, d_frc = off.d_qpos, off.d_qvel, off.d_qfrc_passive
+    """numba cfuncs for nstate, reset and compute, with the offsets baked in."""
+    d_qpos, d_qvel, d_frc, d_time = off.d_qpos, off.d_qvel, off.d_qfrc_passive, off.d_time
     d_state, d_data = off.d_plugin_state, off.d_plugin_data
     m_stateadr, m_dt, m_invw = off.m_plugin_stateadr, off.m_timestep, off.m_dof_invweight0
     m_attr, m_attradr = off.m_plugin_attr, off.m_plugin_attradr
@@ -158,42 +157,17 @@ def _compile_hot_callbacks(off: abi.Offsets):
 
     @njit(inline="always")
     def lookup(m, d, instance):
-        """This instance's parameter row for model m (cached in d->plugin_data), or -1.
-
-        compute calls it every step and caches the row marked ``CHECKED``: validated for this
-        (m, d), config bytes included, so that this step's advance need not compare them again.
-        """
+        """This instance's parameter row for model m (cached in d->plugin_data), or -1."""
         slot = u64_array(field(d, d_data), instance + 1)
         attr = config_address(m, instance)
         # int64 throughout: int() of a uint64 stays uint64, and numba unifies uint64 with the
         # int64 of find_row as float64, which put float conversions on the row's address.
-        r = np.int64(slot[instance] & ~CHECKED)
+        r = np.int64(slot[instance])
         model = _addr(m)
         if r >= cap or not row_matches(keys_addr, configs_addr, r, model, attr, instance):
             r = find_row(keys_addr, configs_addr, model, attr, instance)
-        if r >= 0:
-            slot[instance] = np.uint64(r) | CHECKED
-        return r
-
-    @njit(inline="always")
-    def checked_row(m, d, instance):
-        """advance's row: the one this step's compute validated (the mark is cleared), else ``lookup``.
-
-        Within one mj_step MuJoCo runs the passive stage (compute) before integrating (advance),
-        on the same m and d. An advance that no compute preceded (passive stage disabled,
-        mj_step2 on its own) finds no mark and validates in full; a mark left by another model
-        fails the key compare.
-        """
-        slot = u64_array(field(d, d_data), instance + 1)
-        s = slot[instance]
-        r = np.int64(s & ~CHECKED)
-        if s & CHECKED:
-            slot[instance] = np.uint64(r)
-            if r < cap and keys_match(keys_addr, r, _addr(m), config_address(m, instance), instance):
-                return r
-        r = lookup(m, d, instance)
-        if r >= 0:
-            slot[instance] = np.uint64(r)  # unmarked: the next advance validates again
+            if r >= 0:
+                slot[instance] = np.uint64(r)
         return r
 
     @njit(inline="always")
@@ -221,6 +195,7 @@ def _compile_hot_callbacks(off: abi.Offsets):
         st = f64_ptr_array(plugin_state, NSTATE)
         for i in range(NSTATE):
             st[i] = 0.0
+        st[AT] = np.nan  # zero states at whatever time the reset leaves (a keyframe's)
 
     @cfunc(types.void(types.voidptr, types.voidptr, types.int32, types.int32))
     def compute(m, d, instance, capability):
@@ -230,6 +205,7 @@ def _compile_hot_callbacks(off: abi.Offsets):
             f64_ptr(field(d, d_frc))[0] = np.nan
             return
         blk, st, q, wq, th, wth = joint_state(m, d, instance, r)
+        joint_catch_up(blk, st, q, wq, th, wth, f64_at(d, d_time), f64_at(m, m_dt))
         md, ld = int(blk[MD]), int(blk[LD])
         hj = f64_at(m, m_dt) * f64_ptr(field(m, m_invw))[md] if md >= 0 else 0.0
         fm, fl = joint_forces(blk, st, q, wq, th, wth, hj)
@@ -239,15 +215,7 @@ def _compile_hot_callbacks(off: abi.Offsets):
         if ld >= 0:
             frc[ld] += fl
 
-    @cfunc(types.void(types.voidptr, types.voidptr, types.int32))
-    def advance(m, d, instance):
-        r = checked_row(m, d, instance)
-        if r < 0:
-            return
-        blk, st, q, wq, th, wth = joint_state(m, d, instance, r)
-        joint_advance(blk, st, q, wq, th, wth, f64_at(m, m_dt))
-
-    return nstate, reset, compute, advance
+    return nstate, reset, compute
 
 
 _INIT = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
@@ -259,7 +227,7 @@ def register() -> None:
         if PLUGIN_NAME in _registered:
             return
         off = abi.offsets()
-        nstate, reset, compute, advance = _compile_hot_callbacks(off)
+        nstate, reset, compute = _compile_hot_callbacks(off)
         keys = config_keys()
         attrs = (ctypes.c_char_p * len(keys))(*[k.encode() for k in keys])
         plugin = abi.MjpPlugin()
@@ -273,12 +241,10 @@ def register() -> None:
         plugin.nstate = nstate.address
         plugin.reset = reset.address
         plugin.compute = compute.address
-        plugin.advance = advance.address
         plugin.init = ctypes.cast(init_cb, ctypes.c_void_p).value
         lib.mjp_registerPlugin.restype = ctypes.c_int
         slot = lib.mjp_registerPlugin(ctypes.byref(plugin))
         if slot < 0:
             raise RuntimeError(f"MuJoCo refused to register plugin {PLUGIN_NAME!r}")
         # MuJoCo keeps raw pointers to all of these: they must live as long as the process.
-        _registered[PLUGIN_NAME] = (plugin, attrs, keys, nstate, reset, compute, advance,
-                                    init_cb)
+        _registered[PLUGIN_NAME] = (plugin, attrs, keys, nstate, reset, compute, init_cb)

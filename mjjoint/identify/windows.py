@@ -27,8 +27,8 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 from scipy.signal import savgol_coeffs, savgol_filter
 
-from ..coupling.kernels import friction_history, hysteresis_history, joint_traces
-from ..coupling.layout import (ASYM, B, BW_A, BW_BETA, BW_GAMMA, BW_N, FC, FKIND, FRICTION_2SEP, FS, HYST,
+from ..coupling.kernels import friction_history, hysteresis_history, joint_traces, settled_states
+from ..coupling.layout import (ASYM, AT, B, BW_A, BW_BETA, BW_GAMMA, BW_N, FC, FKIND, FRICTION_2SEP, FS, HYST,
                                NSTATE, QR, SHAPE, SIGMA, VS, WSIGN, X, Z1, Z2)
 from ..assets.stability import check_model_stability
 from ..coupling.mjlog import mujoco_log_silenced
@@ -312,7 +312,8 @@ class Predictor:
         grounded = ji.link_qpos < 0  # no output side: theta is the world's, 0
         th = np.zeros_like(q) if grounded else flat[:, 1 + ji.link_qpos]
         thd = np.zeros_like(q) if grounded else flat[:, 1 + model.nq + ji.link_dof]
-        st = np.ascontiguousarray(flat[:, ji.state_start:ji.state_start + NSTATE])
+        st = settled_states(ji.block, np.ascontiguousarray(flat[:, ji.state_start:ji.state_start + NSTATE]),
+                            flat[:, 0], q, qd, th, thd, model.opt.timestep)
         tau, _, _ = joint_traces(ji.block, st, q, qd, th, thd, ji.step_over_inertia(model))
         shape = (nw, ns)
         # Copies: views of q and theta would keep all of ``full`` (every state column) alive.
@@ -419,6 +420,7 @@ class Predictor:
 def _steady_internal_states(blk, qd, delta):
     """Friction states on the steady sliding branch, Bouc-Wen x on its loading branch."""
     st = np.zeros((len(qd), NSTATE))
+    st[:, AT] = np.nan  # states of the window's start, whatever its time
     if blk[FKIND] == FRICTION_2SEP:
         sg = np.sign(qd)
         st[:, WSIGN] = sg
