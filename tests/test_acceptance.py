@@ -75,3 +75,34 @@ def test_too_few_condition_windows_leave_the_all_window_test_alone():
     test = np.arange(0, n, 2)
     inside, text = condition_mask(_predictor(n, [0, 4], test), "dynamic_friction")  # 2 held-out windows
     assert inside is None and "only 2" in text
+
+
+# ---- the second, all-free screen: when it is called, and at which level ----------------------
+def _fit(cost_train: float, cost_test: float, nparams: int = 5) -> SimpleNamespace:
+    return SimpleNamespace(cost_train=cost_train, cost_test=cost_test, structure=SimpleNamespace(params=[0] * nparams))
+
+
+def _choice(monkeypatch, p: float, cand_test: float, cand_train: float = 0.5, max_p: float | None = None):
+    from mjjoint.diagnosis import loop
+    monkeypatch.setattr(loop, "_consistency", lambda *a: {"p": p, "windows": "20 held-out windows"})
+    monkeypatch.setattr(loop, "_n_residuals", lambda predictor: 10_000)
+    ref = _fit(1.0, 0.01)
+    return loop._decide(None, ref, {"input_delay": (cand_test, _fit(cand_train, cand_test))}, loop.DiagnoseOptions(),
+                        max_p)
+
+
+def test_only_a_material_gain_failing_the_rank_test_alone_is_looked_at_again(monkeypatch):
+    # -37 %, absolute 3.7e-3, BIC lower, but p 0.2: the input_delay screen against stand-ins
+    blocked = _choice(monkeypatch, p=0.2, cand_test=0.0063)
+    assert blocked.failed and blocked.only_inconsistent
+    # the same p with an immaterial gain (5 %), or with the BIC against it: nothing to look at again
+    assert not _choice(monkeypatch, p=0.2, cand_test=0.0095).only_inconsistent
+    assert not _choice(monkeypatch, p=0.2, cand_test=0.0063, cand_train=1.0).only_inconsistent
+    named = _choice(monkeypatch, p=0.01, cand_test=0.0063)
+    assert not named.failed and not named.only_inconsistent
+
+
+def test_the_second_look_runs_at_the_level_it_is_given(monkeypatch):
+    assert not _choice(monkeypatch, p=0.03, cand_test=0.0063).failed            # 0.03 <= 0.05
+    halved = _choice(monkeypatch, p=0.03, cand_test=0.0063, max_p=0.025)       # the all-free look
+    assert halved.failed == ["paired p = 0.030 > 0.025"]
