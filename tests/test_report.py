@@ -182,3 +182,25 @@ def test_html_escapes_text_and_puts_the_verdict_first():
     assert "nothing &lt;significant&gt; is missing" in html.split("<h2>")[0]
     assert "rec&lt;1&gt;.csv" in html and "<significant>" not in html
     assert '<img src="w.png"' in html and '<img src="r.png"' in html
+
+
+def test_a_diagnosis_without_a_torque_recording_draws_its_loop_evidence(tmp_path):
+    """compare() keeps each model's predicted tau when the recording has none: the tau-delta
+    evidence of a gear effect named on such a recording (KUKA KR300 axis 1: transmission
+    hysteresis) is drawn from the models, not a KeyError."""
+    from mjjoint import Chirp, Simulator
+    from mjjoint.benchmark.cases import BASE, GEAR_RATIO, NOMINAL
+    from mjjoint.identify.structure import Structure
+    from mjjoint.identify.windows import Measured, Predictor, WindowDesign
+    from mjjoint.recordings import Recording
+    from mjjoint.report.compare import compare
+    u = Chirp().sample(1000.0, 3.0)
+    tr = Simulator().run(u)
+    rec = Recording(t=tr.t, u=u, q=tr.q, theta=tr.theta, tau=None, gear_ratio=GEAR_RATIO)
+    base = Structure.create(BASE, NOMINAL, GEAR_RATIO)
+    cmp = compare(Predictor(Measured.from_recording(rec, GEAR_RATIO), WindowDesign(length=0.25)),
+                  {"before": base, "after": base.with_effect("transmission_hysteresis", {}, {})})
+    assert "tau" not in cmp.signals and all("tau" in p for p in cmp.predicted.values())
+    path = plot_evidence("transmission_hysteresis", cmp, "before", "after", {"signals": {}}, {},
+                         tmp_path / "loops.png", "delta")
+    assert path.read_bytes()[:8] == PNG

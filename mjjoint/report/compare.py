@@ -14,6 +14,7 @@ import numpy as np
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 
+SIGNALS = ("q", "theta", "delta", "tau")  # what a window prediction holds, in display order
 # Display unit and factor from SI per signal.
 UNITS = {"q": ("rad", 1.0), "theta": ("deg", 180.0 / np.pi), "delta": ("mrad", 1e3), "tau": ("N m", 1.0)}
 LABELS = {"q": "motor angle q", "theta": "link angle theta", "delta": "deflection delta",
@@ -47,12 +48,13 @@ def compare(predictor: Predictor, models: dict[str, Structure]) -> Comparison:
     m = predictor.m
     idx = predictor.samples
     measured = {s: np.asarray(v) for s, v in predictor.meas.items() if v is not None}
-    measured = {s: measured[s] for s in ("q", "theta", "delta", "tau") if s in measured}
+    measured = {s: measured[s] for s in SIGNALS if s in measured}
     cost = np.zeros(predictor.nwin_samples, bool)
     cost[predictor.cols[0]:] = True
     return Comparison(
         t=m.t[idx], measured=measured,
-        predicted={label: {s: p[s] for s in measured} for label, p in zip(models, preds)},
+        # Every predicted signal, tau too where none was recorded: the loop plots show the models'.
+        predicted={label: {s: p[s] for s in SIGNALS if s in p} for label, p in zip(models, preds)},
         conditions={k: v[idx] for k, v in (("q", m.q), ("theta", m.theta), ("qd", m.qd), ("thetad", m.thetad))
                     if v is not None},
         heldout=np.asarray(predictor.holdout, bool).copy(), cost=cost, owned=predictor.owned.copy())
