@@ -124,12 +124,14 @@ class Step:
     screened: dict[str, float]
     alternatives: list[str] = field(default_factory=list)
     consistency: dict = field(default_factory=dict)  # the rank test: windows tested, p
+    screen: str = "stand-ins held"  # or "all free": the second screen named it (module doc)
 
     def as_dict(self) -> dict:
         return {"effect": self.effect, "evidence": self.evidence, "where": self.where,
                 "parameters": self.parameters, "fit_before": self.fit_before, "fit_after": self.fit_after,
                 "heldout_gain": self.gain, "screened": self.screened,
-                "indistinguishable_from": self.alternatives, "consistency_test": self.consistency}
+                "indistinguishable_from": self.alternatives, "consistency_test": self.consistency,
+                "screen": self.screen}
 
 
 @dataclass
@@ -260,7 +262,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         ref, screened = _screen(predictor, current, where, options, say)
         if not screened:
             break
-        choice = _decide(predictor, ref, screened, options)
+        choice, screen = _decide(predictor, ref, screened, options), "stand-ins held"
         if choice.only_inconsistent and options.free_all:
             say(f"  best candidate {choice.best} fails only the rank test ({choice.failed[0]}); screening "
                 "again with every parameter free, from the model refitted")
@@ -270,7 +272,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 initial = initial if steps else ref
             # A second look at the same question: each look at half the level keeps the pair at
             # max_p (Bonferroni), so the escalation cannot raise the false-addition rate.
-            choice = _decide(predictor, ref, screened, options, options.max_p / 2)
+            choice, screen = _decide(predictor, ref, screened, options, options.max_p / 2), "all free"
         best, cand, gain = choice.best, choice.cand, choice.gain
         if choice.failed:
             rejected = (f"the best candidate, {best}, lowers the held-out cost by {100 * gain:.1f} % "
@@ -291,7 +293,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             fit_before=current.nrmse_test, fit_after=refit.nrmse_test,
             gain=1.0 - refit.cost_test / current.cost_test,
             screened={k: v[0] for k, v in screened.items()}, alternatives=alternatives,
-            consistency=consistency))
+            consistency=consistency, screen=screen))
         current = refit
         history.append(current)
     if options.robust_final:

@@ -82,7 +82,7 @@ def _step(k: int, step: dict, final: dict, image: str | None) -> list[str]:
            f"<tr><th>where</th><td>{_where(step['where'])}</td></tr>",
            f"<tr><th>parameters (final fit)</th><td>{ptable}</td></tr>",
            f"<tr><th>held-out NRMSE</th><td>{nrmse_table({'before': before, 'after': after})}</td></tr>",
-           f"<tr><th>screened candidates (held-out cost)</th><td>{screened}</td></tr>",
+           f"<tr><th>screened candidates (held-out cost, {escape(step['screen'])})</th><td>{screened}</td></tr>",
            "</table>"]
     if image:
         out.append(_img(image, f"evidence for {e}"))
