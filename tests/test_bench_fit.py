@@ -39,6 +39,7 @@ def test_quick_run_reports_sane_numbers(tmp_path):
         for who in ("ours", "sysid", "truth"):
             assert math.isfinite(row[who]["heldout_cost"]) and row[who]["heldout_cost"] >= 0
             assert math.isfinite(row[who]["sysid_objective"]) and row[who]["sysid_objective"] >= 0
+            assert len(row[who]["validation_costs"]) == 3 and all(c > 0 for c in row[who]["validation_costs"])
         # The recording is of the fitted model itself: from a start 1.5-2x off, our fit must
         # come back near the held-out cost of the true values.
         assert row["ours"]["heldout_cost"] < 10 * row["truth"]["heldout_cost"]

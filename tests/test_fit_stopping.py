@@ -1,12 +1,15 @@
 """identify.fit's LM schedule: the step rule in standard errors, and coarse-to-fine windows."""
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from mjjoint.assets.drive import DriveSpec
 from mjjoint.identify import fit as fitmod
 from mjjoint.identify.fit import coarse_windows, fit, gauss_newton_step_se
+from mjjoint.identify.effects import EFFECTS
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 
@@ -61,3 +64,53 @@ def test_the_coarse_phase_ends_where_a_fit_on_all_windows_ends(monkeypatch):
     # cost is not minimised and moves ~1e-3 for parameter changes of 1e-6 here (stick-slip
     # windows of the closed loop), which says nothing about where LM ended.
     assert two.cost_train == pytest.approx(one.cost_train, rel=1e-5)
+
+
+def _linear_objective(monkeypatch, a, b):
+    """An _Objective whose residual is the linear a x - b (no rollouts)."""
+    monkeypatch.setattr(fitmod, "residual_matrix",
+                        lambda *args, **kw: (lambda x: a @ (x if x.ndim == 2 else x[:, None]) - b[:, None]))
+    n = a.shape[1]
+    predictor = SimpleNamespace(predict=None)  # the residual above never predicts
+    return fitmod._Objective(predictor, None, None, None, np.full(n, -10.0), np.full(n, 10.0), fitmod.STEP_SE)
+
+
+@pytest.mark.parametrize("se", [0.3, 3.0])
+def test_a_failed_trial_step_ends_the_fit_only_near_the_optimum(monkeypatch, se):
+    """Within FAIL_SE standard errors of the optimum a trial step that does not lower r'r ends
+    the fit (the quadratic model promises < FAIL_SE^2 s^2 more); further out LM may still damp
+    and retry, so the same failure is handed back to it."""
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(size=(300, 2)), rng.normal(size=300)
+    opt = np.linalg.lstsq(a, b, rcond=None)[0]
+    s2 = float(np.sum((a @ opt - b) ** 2)) / (300 - 2)
+    # A point `se` standard errors from the optimum along the first eigen-direction of a'a.
+    lam, vec = np.linalg.eigh(a.T @ a)
+    x = opt + vec[:, 0] * se * np.sqrt(s2 / lam[0])
+    obj = _linear_objective(monkeypatch, a, b)
+    r = obj.residual(x[:, None])  # before any Jacobian no trial has failed
+    obj.jacobian(x[:, None], r)
+    assert obj.steps_se[-1] == pytest.approx(se, rel=0.02)  # s^2 is taken at x: larger by se^2 s^2 / (m - n)
+    worse = (x + (x - opt))[:, None]
+    if se < fitmod.FAIL_SE:
+        with pytest.raises(fitmod._Converged):
+            obj.residual(worse)
+    else:
+        assert float(np.sum(obj.residual(worse) ** 2)) > float(r[:, 0] @ r[:, 0])
+    better = ((x + opt) / 2)[:, None]
+    assert float(np.sum(obj.residual(better) ** 2)) < float(r[:, 0] @ r[:, 0])  # a success never stops it
+
+
+def test_a_fit_on_its_bounds_builds_a_valid_model():
+    """The optimiser's bounds map back inside every parameter's range: exp(log(hi)) can round
+    past hi (1e-6, 5e-5, ...), and a model built there must not be refused by its own
+    validation (a diagnosis once stopped on tip_mass = 1000 + 1 ulp)."""
+    from mjjoint.benchmark.cases import make_case
+
+    truth = make_case("none", 0).truth
+    s = Structure.create(tuple(EFFECTS), truth.nominal, 160.0, {}, {"torque_ripple.harmonic": 3.0})
+    for x in s.bounds():
+        at = s.from_vector(x)
+        for p in at.params:
+            assert p.lo <= at.values[p.name] <= p.hi, p.name
+        at.model_params()

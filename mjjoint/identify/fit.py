@@ -5,7 +5,8 @@ residual is vectorised over parameter vectors: every finite-difference Jacobian 
 ``mujoco.rollout`` of all windows for all perturbed models, spread over the cores. Parameters
 are optimised in log coordinates where they span decades. The LM runs first on a seeded
 quarter of the windows, then on all of them, and stops when its Gauss-Newton step is a tenth
-of the parameters' standard errors (constants below). Confidence intervals come from the
+of the parameters' standard errors, or when a trial step fails within half of one (constants
+below). Confidence intervals come from the
 Jacobian at the optimum (s^2 (J^T J)^-1, s^2 from the residual); a parameter whose 95 %
 interval is wider than its value, or that sits on a bound, is flagged.
 
@@ -45,6 +46,12 @@ _BAD = 1e3  # residual given to an unstable (NaN) prediction: far worse than any
 STEP_SE = 0.1
 STALL_ITER = 2
 XTOL = 1e-4
+# A trial step that fails to lower r'r once the Gauss-Newton step is within FAIL_SE standard
+# errors ends the fit at the last accepted point: all the quadratic model still promises is
+# FAIL_SE^2 s^2, and a failure there means the cost is not quadratic at that scale (a model
+# that lacks a backlash, or quantised sensors: bench_fit (c) spent 11 trials, each a rollout
+# of all windows, raising mu between points whose r'r agreed to 6 digits).
+FAIL_SE = 0.5
 # Coarse to fine: the first LM phase runs on a seeded COARSE_SHARE of the training windows (at
 # least COARSE_MIN, and only if all windows are at least twice as many) until its step is
 # within COARSE_SE of the subset's standard errors; far from the optimum a quarter of the
@@ -181,7 +188,8 @@ class _Objective:
     def __init__(self, predictor: Predictor, structure: Structure, names, windows, lo, hi, tol_se: float,
                  scale: float | None = None):
         self.seen: dict = {}
-        self.residual = residual_matrix(predictor.predict, structure, names, windows, predictor, self.seen, scale)
+        self.accepted: dict = {}  # the last Jacobian point's predictions (``seen`` when it was taken)
+        self._residual = residual_matrix(predictor.predict, structure, names, windows, predictor, self.seen, scale)
         self.bounds = [lo[:, None], hi[:, None]]
         self.lo, self.hi, self.tol_se = lo, hi, tol_se
         self.jac_at: tuple | None = None  # (x, r, jac) of the last Jacobian
@@ -189,8 +197,16 @@ class _Objective:
         self.costs: list[float] = []  # r'r at each Jacobian
         self.m = 1  # residual entries
 
+    def residual(self, x: np.ndarray) -> np.ndarray:
+        r = self._residual(x)
+        if r.ndim == 2 and r.shape[1] == 1 and self.costs and self.steps_se[-1] < FAIL_SE \
+                and float(r[:, 0] @ r[:, 0]) >= self.costs[-1]:
+            raise _Converged  # a failed trial step near the optimum (FAIL_SE)
+        return r
+
     def jacobian(self, x: np.ndarray, r: np.ndarray) -> np.ndarray:
-        jac, _ = minimize.jacobian_fd(self.residual, x, r, EPS, 0, self.bounds)
+        self.accepted = dict(self.seen)
+        jac, _ = minimize.jacobian_fd(self._residual, x, r, EPS, 0, self.bounds)
         self.jac_at = (x[:, 0].copy(), r[:, 0].copy(), jac)
         rr = float(r[:, 0] @ r[:, 0])
         self.m = r.shape[0]
@@ -209,13 +225,16 @@ class _Objective:
             xj, rj, jac = self.jac_at
             if np.linalg.norm(x - xj) <= XTOL * (XTOL + np.linalg.norm(x)):
                 return rj, jac
-        r = self.residual(x[:, None])
-        jac, _ = minimize.jacobian_fd(self.residual, x[:, None], r, EPS, 0, self.bounds)
+        r = self._residual(x[:, None])
+        jac, _ = minimize.jacobian_fd(self._residual, x[:, None], r, EPS, 0, self.bounds)
         return r[:, 0], jac
 
     def prediction(self, x: np.ndarray) -> dict | None:
         """The predictions at x if the last single-point evaluation was there."""
-        return self.seen["pred"] if "x" in self.seen and np.array_equal(self.seen["x"], x) else None
+        for seen in (self.seen, self.accepted):
+            if "x" in seen and np.array_equal(seen["x"], x):
+                return seen["pred"]
+        return None
 
 
 def gauss_newton_step_se(jac: np.ndarray, r: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:

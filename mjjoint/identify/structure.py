@@ -61,7 +61,9 @@ class Structure:
 
     def from_vector(self, x: np.ndarray, names=None) -> "Structure":
         ps = self._select(names)
-        return self.with_values({p.name: p.from_unit(float(v)) for p, v in zip(ps, x)})
+        # Clipped: exp(log(hi)) may round past hi, where the model's own validation refuses it
+        # (a fit that ran tip_mass to its bound of 1000 kg raised ValueError mid-diagnosis).
+        return self.with_values({p.name: min(max(p.from_unit(float(v)), p.lo), p.hi) for p, v in zip(ps, x)})
 
     def bounds(self, names=None) -> tuple[np.ndarray, np.ndarray]:
         ps = self._select(names)
