@@ -205,7 +205,8 @@ def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: flo
         groups.append(({"friction.k (pre-sliding stiffness)": 2 * (f.fs + abs(f.asym)) * f.k / motor_inertia}, {}))
     elif isinstance(f, StaticFriction):
         groups.append(({}, {"friction.v_eps (Coulomb slope)":
-                            (max(f.fc, f.fs) + abs(f.asym)) / (f.v_eps * motor_inertia) + f.sigma / motor_inertia}))
+                            (max(f.fc, f.fs) + abs(f.asym)) / (f.v_eps * motor_inertia)
+                            + f.sigma * (1 + abs(f.sigma_asym)) / motor_inertia}))
     if params.load_friction is not None:
         lf = params.load_friction
         groups.append(({}, {"load_friction.v_eps (Coulomb slope)": (lf.fc / lf.v_eps + lf.viscous) / link_inertia}))

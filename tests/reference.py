@@ -26,16 +26,17 @@ def stribeck_level(w, fc, fs, vs, shape):
     return fc + (fs - fc) * math.exp(-(abs(w) / vs) ** shape)
 
 
-def steady_state(w, fc, fs, vs, shape, sigma, asym):
-    """S(w) = s(w) + sigma w (Eqs. 14-15); asym raises both levels in the direction of motion."""
+def steady_state(w, fc, fs, vs, shape, sigma, asym, sigma_asym):
+    """S(w) = s(w) + sigma w (Eqs. 14-15); asym raises both levels in the direction of motion,
+    and the viscous force gains sigma_asym sigma |w| (slopes sigma (1 +- sigma_asym))."""
     d = sgn(w)
-    return d * stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape) + sigma * w
+    return d * stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape) + sigma * w + sigma_asym * sigma * abs(w)
 
 
-def static_friction(w, fc, fs, vs, shape, sigma, asym, v_eps):
-    """S(w) with every sgn(w) replaced by tanh(w / v_eps)."""
+def static_friction(w, fc, fs, vs, shape, sigma, asym, v_eps, sigma_asym):
+    """S(w) with every sgn(w) replaced by tanh(w / v_eps) (|w| by w tanh(w / v_eps))."""
     d = math.tanh(w / v_eps)
-    return d * stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape) + sigma * w
+    return d * stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape) + sigma * w + sigma_asym * sigma * w * d
 
 
 # ---- 2SEP, Eqs. 11-15 -------------------------------------------------------------------
@@ -58,7 +59,7 @@ def _presliding_primitive(s, k):
     return sgn(s) * (1.0 - math.exp(-k * abs(s)))
 
 
-def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, asym):
+def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, asym, sigma_asym):
     """One step of length h at constant velocity w: (z1, z2, Omega, q_r, sgn of last motion).
 
     A reversal (w of the opposite sign to the last motion, or the first motion) stores
@@ -75,8 +76,8 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
         wsign = d
     qr_end = qr + w * h
     z1 = z1 + abs(omega) * (_presliding_primitive(qr_end, k) - _presliding_primitive(qr, k))
-    s_abs = stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape) + sigma * abs(w)
-    target = steady_state(w, fc, fs, vs, shape, sigma, asym)
+    s_abs = stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape) + sigma * (1 + sigma_asym * d) * abs(w)
+    target = steady_state(w, fc, fs, vs, shape, sigma, asym, sigma_asym)
     # Backward Euler: z2' = z2 + h (S - z1' - B|w| z2') / |S|, linear in z2'.
     z2 = (z2 + h * (target - z1) / s_abs) / (1.0 + h * b * abs(w) / s_abs)
     return z1, z2, omega, qr_end, wsign
@@ -174,7 +175,7 @@ def _motor_friction(p: JointParams, s: JointState, wq: float, hj: float) -> floa
     if isinstance(f, TwoSEP):
         return twosep_force_implicit(s.z1, s.z2, wq, f.b, hj)
     if isinstance(f, StaticFriction):
-        return static_friction(wq, f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps)
+        return static_friction(wq, f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps, f.sigma_asym)
     return 0.0
 
 
@@ -204,7 +205,8 @@ def joint_advance(p: JointParams, s: JointState, q, wq, theta, wtheta, h) -> Joi
     f = p.friction
     if isinstance(f, TwoSEP):
         out.z1, out.z2, out.omega, out.q_r, out.w_sign = twosep_step(
-            s.z1, s.z2, s.omega, s.q_r, s.w_sign, wq, h, f.fc, f.fs, f.vs, f.shape, f.sigma, f.k, f.b, f.asym)
+            s.z1, s.z2, s.omega, s.q_r, s.w_sign, wq, h, f.fc, f.fs, f.vs, f.shape, f.sigma, f.k, f.b, f.asym,
+            f.sigma_asym)
     hyst = p.transmission.hysteresis
     if hyst is not None:
         n = p.transmission.gear_ratio

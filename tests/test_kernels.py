@@ -46,7 +46,7 @@ def twoseps(draw) -> TwoSEP:
     return TwoSEP(fc=fc, fs=fs, vs=draw(finite(1e-3, 10.0)),
                   shape=draw(finite(0.1, 5.0)), sigma=draw(finite(0.0, 1e-2)),
                   k=draw(finite(1.0, 1e5)), b=draw(finite(0.0, 500.0)),
-                  asym=min(fc, fs) * draw(finite(-0.99, 0.99)))
+                  asym=min(fc, fs) * draw(finite(-0.99, 0.99)), sigma_asym=draw(finite(-0.99, 0.99)))
 
 
 @st.composite
@@ -54,7 +54,8 @@ def statics(draw) -> StaticFriction:
     fc, fs = draw(finite(0.0, 1.0)), draw(finite(0.0, 2.0))
     return StaticFriction(fc=fc, fs=fs, vs=draw(finite(1e-3, 10.0)),
                           shape=draw(finite(0.1, 5.0)), sigma=draw(finite(0.0, 1e-2)),
-                          asym=min(fc, fs) * draw(finite(-1.0, 1.0)), v_eps=draw(finite(1e-5, 1.0)))
+                          asym=min(fc, fs) * draw(finite(-1.0, 1.0)), v_eps=draw(finite(1e-5, 1.0)),
+                          sigma_asym=draw(finite(-0.99, 0.99)))
 
 
 @st.composite
@@ -99,18 +100,21 @@ velocity = st.just(0.0) | finite(-100.0, 100.0) | finite(-1e-3, 1e-3)
 @given(w=velocity, p=twoseps())
 @example(w=0.0, p=TwoSEP())
 @example(w=-0.3, p=TwoSEP(asym=0.05))
+@example(w=-30.0, p=TwoSEP(sigma=1e-3, sigma_asym=0.4))
 def test_stribeck_and_steady_state(w, p):
     args = (p.fc, p.fs, p.vs, p.shape)
     assert close(stribeck.stribeck_level(w, *args), ref.stribeck_level(w, *args))
-    assert close(stribeck.steady_state(w, *args, p.sigma, p.asym), ref.steady_state(w, *args, p.sigma, p.asym))
+    assert close(stribeck.steady_state(w, *args, p.sigma, p.asym, p.sigma_asym),
+                 ref.steady_state(w, *args, p.sigma, p.asym, p.sigma_asym))
 
 
 @SETTINGS
 @given(w=velocity, p=statics())
 @example(w=0.0, p=StaticFriction())
 @example(w=-2e-3, p=StaticFriction(asym=0.03))
+@example(w=25.0, p=StaticFriction(sigma=1e-3, sigma_asym=-0.4))
 def test_static_friction(w, p):
-    args = (w, p.fc, p.fs, p.vs, p.shape, p.sigma, p.asym, p.v_eps)
+    args = (w, p.fc, p.fs, p.vs, p.shape, p.sigma, p.asym, p.v_eps, p.sigma_asym)
     assert close(stribeck.static_friction(*args), ref.static_friction(*args))
 
 
@@ -144,7 +148,7 @@ def test_twosep_force_implicit(z1, z2, w, b, hj):
 @example(s=(-0.05, -1e-3, 0.1, -0.002, -1.0), w=-1.0, h=5e-4, p=TwoSEP())  # continued motion
 @example(s=(0.08, 1e-3, 0.08, 0.02, 1.0), w=0.0, h=5e-4, p=TwoSEP(asym=-0.03))  # stop: no reversal
 def test_twosep_step(s, w, h, p):
-    args = (w, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym)
+    args = (w, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym, p.sigma_asym)
     got = twosep.twosep_step(*s, *args)
     want = ref.twosep_step(*s, *args)
     scales = (4.0, 50.0, 4.0, 1.0, 1.0)
@@ -283,14 +287,15 @@ def run_2sep(velocities, h, p=P, state=(0.0, 0.0, 0.0, 0.0, 0.0)):
     s = state
     out, force = [], []
     for w in velocities:
-        s = twosep.twosep_step(*s, w, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym)
+        s = twosep.twosep_step(*s, w, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym, p.sigma_asym)
         out.append(s)
         force.append(twosep.twosep_force(s[0], s[1], w, p.b))
     return np.array(out), np.array(force)
 
 
 @pytest.mark.parametrize("w", [-20.0, -0.5, -0.01, 0.01, 0.5, 20.0])
-@pytest.mark.parametrize("p", [P, TwoSEP(asym=0.03, shape=2.0)], ids=["default", "asym"])
+@pytest.mark.parametrize("p", [P, TwoSEP(asym=0.03, shape=2.0), TwoSEP(sigma=1e-3, sigma_asym=-0.5)],
+                         ids=["default", "asym", "viscous asym"])
 def test_2sep_constant_velocity_converges_to_steady_state(w, p):
     """F -> S(w) = s(w) + sigma w (Eq. 15) at any constant velocity, either sign."""
     tau = ref.stribeck_level(w, p.fc, p.fs, p.vs, p.shape) / (p.b * abs(w))  # z2 lag time
@@ -298,7 +303,7 @@ def test_2sep_constant_velocity_converges_to_steady_state(w, p):
     duration = max(20.0 * tau, travel / abs(w))
     h = 5e-4
     _, f = run_2sep(np.full(max(int(duration / h), 200), w), h, p)
-    s = ref.steady_state(w, p.fc, p.fs, p.vs, p.shape, p.sigma, p.asym)
+    s = ref.steady_state(w, p.fc, p.fs, p.vs, p.shape, p.sigma, p.asym, p.sigma_asym)
     assert f[-1] == pytest.approx(s, rel=1e-6)
 
 
@@ -505,7 +510,7 @@ def test_friction_history(w, h, p):
     s = [0.01, 0.0, 0.0, 0.0, 0.0]
     want = []
     for wi in w:
-        s = list(ref.twosep_step(*s, wi, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym))
+        s = list(ref.twosep_step(*s, wi, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym, p.sigma_asym))
         want.append(s)
     got = kernels.friction_history(blk, np.asarray(w), h, np.array([0.01, 0.0, 0.0, 0.0, 0.0, 0.0, np.nan]))
     assert got.shape == (len(w), NSTATE)
@@ -527,3 +532,25 @@ def test_histories_along_a_simulation_are_the_plugins_states():
     assert np.max(np.abs(x - tr.states[:, X])) < 1e-6 * np.ptp(tr.states[:, X])
     f = kernels.friction_history(blk, tr.qd[1:], 1.0 / 2000.0, tr.states[0])
     assert np.allclose(f[:, :X], tr.states[1:, :X], rtol=1e-9, atol=1e-12)
+
+
+@SETTINGS
+@given(w=finite(1e-3, 50.0), r=finite(-0.99, 0.99), sigma=finite(1e-6, 1e-2))
+def test_viscous_asymmetry_gives_each_direction_its_slope_and_stays_dissipative(w, r, sigma):
+    """With sigma_asym = r the viscous part is sigma (1 + r) w forwards and sigma (1 - r) w
+    backwards (what viscous_asymmetry.ratio means), and friction still opposes every motion."""
+    p = TwoSEP(sigma=sigma, sigma_asym=r)
+    base = TwoSEP(sigma=0.0)
+    for v, slope in ((w, sigma * (1 + r)), (-w, sigma * (1 - r))):
+        viscous = p.steady_state(v) - base.steady_state(v)
+        assert close(viscous, slope * v)
+        assert p.steady_state(v) * v > 0
+        s = StaticFriction(sigma=sigma, sigma_asym=r)
+        assert s(v) * v > 0
+
+
+@pytest.mark.parametrize("klass", [StaticFriction, TwoSEP])
+@pytest.mark.parametrize("r", [1.0, -1.0, 2.5])
+def test_a_viscous_asymmetry_that_would_make_a_slope_non_positive_is_refused(klass, r):
+    with pytest.raises(ValueError, match="sigma_asym"):
+        klass(sigma_asym=r)

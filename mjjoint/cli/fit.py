@@ -156,6 +156,8 @@ def structure_from_model(model: ModelFile, gear_ratio: float | None) -> tuple[St
         notes.append(f"friction.shape={f.shape:g}: the Stribeck effect has shape 1; the shape is not kept")
     if f is not None and f.sigma > 0:
         values["viscous_friction.sigma"] = f.sigma
+        if f.sigma_asym != 0:
+            values["viscous_asymmetry.ratio"] = f.sigma_asym
     if tr.k2 != 0:
         notes.append(f"transmission.k2={tr.k2:g}: no effect holds a quadratic stiffness term; ignored")
     if tr.k3 > 0:

@@ -19,7 +19,7 @@ from ..physics.twosep import twosep_force_implicit, twosep_step
 from .layout import (ASYM, AT, B, BACKLASH, BW_A, BW_BETA, BW_GAMMA, BW_N, DAMP, FC, FKIND,
                      FRICTION_2SEP, FRICTION_STATIC, FS, GEAR, HYST, K, K1, K2, K3, L_FC,
                      L_VEPS, L_VISC, LOAD, MU, OMEGA, QR, R_AMP, R_K, R_PHASE, RIPPLE,
-                     SHAPE, SIGMA, VEPS, VS, WSIGN, X, Z1, Z2)
+                     SHAPE, SIGMA, VASYM, VEPS, VS, WSIGN, X, Z1, Z2)
 
 
 @kernel
@@ -33,7 +33,8 @@ def motor_friction(blk, st, w, hj):
     if kind == FRICTION_2SEP:
         return twosep_force_implicit(st[Z1], st[Z2], w, blk[B], hj)
     if kind == FRICTION_STATIC:
-        return static_friction(w, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM], blk[VEPS])
+        return static_friction(w, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM], blk[VEPS],
+                               blk[VASYM])
     return 0.0
 
 
@@ -105,7 +106,7 @@ def friction_step(blk, st, w, h):
     """Advance the 2SEP states in ``st`` over a step of length h ending at motor velocity w."""
     z1, z2, om, qr, ws = twosep_step(st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], w, h,
                                      blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA],
-                                     blk[K], blk[B], blk[ASYM])
+                                     blk[K], blk[B], blk[ASYM], blk[VASYM])
     st[Z1] = z1
     st[Z2] = z2
     st[OMEGA] = om

@@ -19,8 +19,9 @@ from ..physics.twosep import TwoSEP
  GEAR, K1, K2, K3, DAMP, BACKLASH,
  HYST, MU, BW_A, BW_BETA, BW_GAMMA, BW_N,
  LOAD, L_FC, L_VISC, L_VEPS,
- RIPPLE, R_AMP, R_K, R_PHASE) = range(34)
-BLOCK_LEN = 34
+ RIPPLE, R_AMP, R_K, R_PHASE,
+ VASYM) = range(35)
+BLOCK_LEN = 35
 FRICTION_NONE, FRICTION_STATIC, FRICTION_2SEP = 0.0, 1.0, 2.0
 
 # Plugin state indices: the 2SEP states (twosep.Z1 ... WSIGN), the Bouc-Wen x, then the time
@@ -39,9 +40,11 @@ def pack(params: JointParams, motor_qpos: int, motor_dof: int, link_qpos: int, l
         b[FKIND] = FRICTION_2SEP
         b[[FC, FS, VS, SHAPE, SIGMA, K, B, ASYM]] = f.fc, f.fs, f.vs, f.shape, f.sigma, f.k, f.b, f.asym
         b[VEPS] = 1.0
+        b[VASYM] = f.sigma_asym
     elif isinstance(f, StaticFriction):
         b[FKIND] = FRICTION_STATIC
-        b[[FC, FS, VS, SHAPE, SIGMA, ASYM, VEPS]] = f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps
+        b[[FC, FS, VS, SHAPE, SIGMA, ASYM, VEPS, VASYM]] = (f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps,
+                                                            f.sigma_asym)
     t = params.transmission
     b[GEAR] = params.gear_ratio  # a direct drive: N = 1 and no stiffness, so T = 0
     b[MU] = 1.0

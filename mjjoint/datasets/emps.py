@@ -86,7 +86,9 @@ def _matlab_decimate(x: np.ndarray, r: int) -> np.ndarray:
 
 
 def idim_regressors(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
-    """The decimated observation matrix [q'', q', sgn q', 1] and force, as in the authors' script."""
+    """The decimated observation matrix [q'', q', sgn q', 1, |q'|] and force, as in the authors'
+    script, whose model is the first four columns; |q'| is the regressor of a direction-dependent
+    viscous slope (Fv + Fa sgn q') q' (mjjoint's ``viscous_asymmetry``, ratio Fa / Fv)."""
     dt = float(rec.t[1] - rec.t[0])
     nyquist = 0.5 / dt
     b, a = butter(4, 100.0 / nyquist)
@@ -94,29 +96,45 @@ def idim_regressors(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
     v = np.gradient(qf, dt)
     acc = np.gradient(v, dt)
     border = 49  # MATLAB's q_f(50:end)
-    x = np.column_stack([acc, v, np.sign(v), np.ones_like(v)])[border:]
+    x = np.column_stack([acc, v, np.sign(v), np.ones_like(v), np.abs(v)])[border:]
     ratio = int(round(0.8 * nyquist / 40.0))
     xd = np.column_stack([_matlab_decimate(c, ratio) for c in x.T])
     return xd, _matlab_decimate(rec.u[border:], ratio)
 
 
 def idim_relative_error(rec: Recording, params: np.ndarray) -> float:
-    """100 ||F - X p|| / ||F|| [%] for p = (M, Fv, Fc, offset) on the decimated data."""
+    """100 ||F - X p|| / ||F|| [%] for p = (M, Fv, Fc, offset[, Fa]) on the decimated data."""
     x, f = idim_regressors(rec)
-    return float(100.0 * np.linalg.norm(f - x @ np.asarray(params, float)) / np.linalg.norm(f))
+    p = np.asarray(params, float)
+    return float(100.0 * np.linalg.norm(f - x[:, :p.size] @ p) / np.linalg.norm(f))
 
 
-def idim_least_squares(rec: Recording, min_speed: float = 0.0) -> np.ndarray:
+def idim_least_squares(rec: Recording, min_speed: float = 0.0, asymmetric: bool = False) -> np.ndarray:
     """The IDIM-LS estimate (M, Fv, Fc, offset): the published method, for reference.
 
     ``min_speed`` > 0 [m/s] drops the decimated samples slower than it. Not the published
     method: a diagnostic of how much its parameters owe to the slow approaches to the
     reversals, where the measured friction lies below the Coulomb-plus-viscous line
-    (``sliding_friction``; docs/datasets.md).
+    (``sliding_friction``; docs/datasets.md). ``asymmetric`` adds the fifth regressor |q'|
+    and its coefficient Fa (the published method applied to the model the diagnosis finds).
     """
     x, f = idim_regressors(rec)
     keep = np.abs(x[:, 1]) >= min_speed
-    return np.linalg.lstsq(x[keep], f[keep], rcond=None)[0]
+    cols = 5 if asymmetric else 4
+    return np.linalg.lstsq(x[keep, :cols], f[keep], rcond=None)[0]
+
+
+def symmetric_equivalent(rec: Recording, params: np.ndarray) -> np.ndarray:
+    """(M, Fv, Fc, offset): the published (symmetric) model closest to a model ``params`` =
+    (M, Fv, Fc, offset, Fa) along a recording: the least-squares projection of that model's
+    force X p onto the published regressors, with the authors' filters and decimation.
+
+    How models of different structure are compared: it is what the authors' IDIM-LS would
+    estimate if the force were exactly the given model's. A model without Fa maps to itself.
+    """
+    x, _ = idim_regressors(rec)
+    p = np.asarray(params, float)
+    return np.linalg.lstsq(x[:, :4], x[:, :p.size] @ p, rcond=None)[0]
 
 
 def sliding_friction(rec: Recording, mass: float, min_speed: float = 0.03,
@@ -153,13 +171,15 @@ def published_structure(nominal):
 
 
 def equivalent_parameters(structure) -> np.ndarray:
-    """(M, Fv, Fc, offset) of a fitted structure in the published model's terms.
+    """(M, Fv, Fc, offset, Fa) of a fitted structure in the terms of ``idim_regressors``.
 
     A constant input offset o is the published offset -o; friction asymmetry a (the levels
     shifted by a in the direction of motion) is the same force as an offset a while the axis
-    moves, which the EMPS does 99 % of the time. Terms the published model lacks are left out.
+    moves, which the EMPS does 99 % of the time. Fa = Fv r for a viscous asymmetry r (0 without
+    one; the published model has none). Terms neither model has are left out.
     """
     v = structure.values
     fc = v.get("coulomb_friction.fc", 0.0)
+    sigma = v.get("viscous_friction.sigma", 0.0)
     offset = -v.get("input_offset.offset", 0.0) + fc * v.get("friction_asymmetry.ratio", 0.0)
-    return np.array([v["inertia.motor"], v.get("viscous_friction.sigma", 0.0), fc, offset])
+    return np.array([v["inertia.motor"], sigma, fc, offset, sigma * v.get("viscous_asymmetry.ratio", 0.0)])

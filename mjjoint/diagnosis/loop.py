@@ -73,6 +73,7 @@ EVIDENCE: dict[str, tuple[str, ...]] = {
     "stribeck_friction": ("stribeck", "reversal"),
     "dynamic_friction": ("reversal", "hysteresis", "lag"),
     "friction_asymmetry": ("coulomb",),
+    "viscous_asymmetry": ("viscous",),
     "load_friction": ("coulomb", "viscous", "reversal"),
     "gravity": ("sin_theta", "cos_theta"),
     "linear_stiffness": ("delta", "resonance"),

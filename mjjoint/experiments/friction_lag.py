@@ -33,7 +33,7 @@ FIGURE = "fig8_friction_lag.png"
 
 
 @njit(cache=True)
-def _drive(w, h, fc, fs, vs, shape, sigma, k, b, asym):
+def _drive(w, h, fc, fs, vs, shape, sigma, k, b, asym, sigma_asym):
     """F and z1 along a prescribed velocity sequence, w[i] held over a step of length h[i]."""
     n = w.shape[0]
     force = np.empty(n)
@@ -41,7 +41,7 @@ def _drive(w, h, fc, fs, vs, shape, sigma, k, b, asym):
     z1 = z2 = omega = qr = wsign = 0.0
     for i in range(n):
         z1, z2, omega, qr, wsign = twosep_step(z1, z2, omega, qr, wsign, w[i], h[i], fc, fs, vs, shape,
-                                               sigma, k, b, asym)
+                                               sigma, k, b, asym, sigma_asym)
         force[i] = twosep_force(z1, z2, w[i], b)
         z1s[i] = z1
     return force, z1s
@@ -52,12 +52,12 @@ def twosep_response(w: np.ndarray, h, p: TwoSEP = TwoSEP()) -> tuple[np.ndarray,
     steps ``h`` [s] (a scalar or one per sample)."""
     w = np.asarray(w, float)
     h = np.ascontiguousarray(np.broadcast_to(np.asarray(h, float), w.shape))
-    return _drive(w, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym)
+    return _drive(w, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym, p.sigma_asym)
 
 
 def static_map(w: np.ndarray, p: TwoSEP = TwoSEP()) -> np.ndarray:
     """S(w) of Eqs. (14)-(15) (0 at w = 0, the sign's value)."""
-    return np.array([steady_state(float(v), p.fc, p.fs, p.vs, p.shape, p.sigma, p.asym) for v in w])
+    return np.array([steady_state(float(v), p.fc, p.fs, p.vs, p.shape, p.sigma, p.asym, p.sigma_asym) for v in w])
 
 
 def stepped_cycles(amplitude: float, frequencies, periods: int, steps_per_period: int = 20000):

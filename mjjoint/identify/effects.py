@@ -105,7 +105,8 @@ def _dynamic(model: Model, v: dict[str, float]) -> Model:
     arm, j = model
     f = _friction(model)
     twosep = TwoSEP(fc=max(f.fc, 1e-6), fs=max(f.fs, f.fc, 1e-6), vs=f.vs, shape=f.shape,
-                    sigma=f.sigma, asym=f.asym, k=v["dynamic_friction.k"], b=v["dynamic_friction.b"])
+                    sigma=f.sigma, asym=f.asym, sigma_asym=f.sigma_asym,
+                    k=v["dynamic_friction.k"], b=v["dynamic_friction.b"])
     return arm, dataclasses.replace(j, friction=twosep)
 
 
@@ -157,6 +158,9 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("friction_asymmetry", "direction-dependent friction level",
            (Param("friction_asymmetry.ratio", 0.0, -0.9, 0.9, log=False),),
            _asym, requires=("coulomb_friction",)),
+    Effect("viscous_asymmetry", "direction-dependent viscous slope, sigma (1 + r sgn w) w",
+           (Param("viscous_asymmetry.ratio", 0.0, -0.9, 0.9, log=False),),
+           lambda m, v: _set_friction(m, sigma_asym=v["viscous_asymmetry.ratio"]), requires=("viscous_friction",)),
     Effect("load_friction", "output bearing friction Fc sgn(theta') + d_f theta'",
            (Param("load_friction.fc", 0.1, 1e-4, 50.0, unit="N m"),
             Param("load_friction.viscous", 0.01, 1e-5, 10.0, unit="N m s/rad")),
@@ -202,7 +206,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
 # Torque ripple is left out because its harmonics are per motor revolution, which a linear
 # axis measured in metres does not define.
 DRIVE_EFFECTS = ("coulomb_friction", "viscous_friction", "stribeck_friction", "dynamic_friction",
-                 "friction_asymmetry", "input_delay", "input_offset")
+                 "friction_asymmetry", "viscous_asymmetry", "input_delay", "input_offset")
 
 # Parameters of the minimal structure: inertias (the gear ratio is given, not fitted); a direct
 # drive has only the one, the motor joint's (kg on a slide). The link's inertia is fitted as the

@@ -29,7 +29,7 @@ from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..coupling.kernels import friction_history, hysteresis_history, joint_traces, settled_states
 from ..coupling.layout import (ASYM, AT, B, BW_A, BW_BETA, BW_GAMMA, BW_N, FC, FKIND, FRICTION_2SEP, FS, HYST,
-                               NSTATE, QR, SHAPE, SIGMA, VS, WSIGN, X, Z1, Z2)
+                               NSTATE, QR, SHAPE, SIGMA, VASYM, VS, WSIGN, X, Z1, Z2)
 from ..assets.stability import check_model_stability
 from ..coupling.mjlog import mujoco_log_silenced
 from ..coupling.plugin import register_model
@@ -426,7 +426,7 @@ def _steady_internal_states(blk, qd, delta):
         st[:, WSIGN] = sg
         st[:, Z1] = sg * (blk[FC] + blk[ASYM] * sg)
         st[:, QR] = 1e6  # far from the last reversal: pre-sliding saturated
-        s = np.array([steady_state(w, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM])
+        s = np.array([steady_state(w, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM], blk[VASYM])
                       for w in qd])
         bw = blk[B] * np.abs(qd)
         st[:, Z2] = np.where(bw > 0, (s - st[:, Z1]) / np.where(bw > 0, bw, 1.0), 0.0)

@@ -37,18 +37,19 @@ def stribeck_level(w: float, fc: float, fs: float, vs: float, shape: float) -> f
 
 @kernel
 def steady_state(w: float, fc: float, fs: float, vs: float, shape: float, sigma: float,
-                 asym: float) -> float:
-    """S(w) = s(w) + sigma w (Eqs. 14-15); ``asym`` shifts both levels in the direction of motion."""
+                 asym: float, sigma_asym: float) -> float:
+    """S(w) = s(w) + sigma w (Eqs. 14-15); ``asym`` shifts both levels in the direction of motion,
+    ``sigma_asym`` scales the viscous slope by (1 + sigma_asym sgn w)."""
     sg = 1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0)
-    return sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * w
+    return sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * (1.0 + sigma_asym * sg) * w
 
 
 @kernel
 def static_friction(w: float, fc: float, fs: float, vs: float, shape: float, sigma: float,
-                    asym: float, v_eps: float) -> float:
+                    asym: float, v_eps: float, sigma_asym: float) -> float:
     """Regularised static map: tanh(w/v_eps) replaces sgn(w) in S(w)."""
     sg = smooth_sign(w, v_eps)
-    return sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * w
+    return sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * (1.0 + sigma_asym * sg) * w
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,9 @@ class StaticFriction:
     shape: float = 1.0    # Stribeck shape factor; same default as TwoSEP.shape
     sigma: float = 2e-4   # viscous coefficient; same default as TwoSEP.sigma
     asym: float = 0.0     # direction-dependent shift of both levels (friction asymmetry)
+    # Direction-dependent viscous slope: sigma (1 + sigma_asym sgn w), |sigma_asym| < 1 keeps it
+    # dissipative. 0: symmetric, as the chapter's model (EMPS: slopes 155 / 231 N s/m, docs/datasets.md).
+    sigma_asym: float = 0.0
     # Sign regularisation [rad/s]. The plugin's torques are explicit, so the slope fc/v_eps
     # on the rotor inertia J must keep fc h/(v_eps J) < 2: 1 rad/s suits fc = 0.08 N m,
     # J = 5e-5 kg m^2, h = 0.5 ms (and is 0.3 % of the 325 rad/s idling speed).
@@ -77,6 +81,7 @@ class StaticFriction:
         check("sigma", self.sigma, 0.0)
         lim = min(self.fc, self.fs)  # both directions keep non-negative friction levels
         check("asym", self.asym, -lim, lim)
+        check("sigma_asym", self.sigma_asym, -1.0, 1.0, lo_open=True, hi_open=True)
         check("v_eps", self.v_eps, 0.0, lo_open=True)
 
     @classmethod
@@ -88,4 +93,5 @@ class StaticFriction:
         return cls(fc=0.0, fs=0.0, sigma=sigma)
 
     def __call__(self, w: float) -> float:
-        return static_friction(w, self.fc, self.fs, self.vs, self.shape, self.sigma, self.asym, self.v_eps)
+        return static_friction(w, self.fc, self.fs, self.vs, self.shape, self.sigma, self.asym, self.v_eps,
+                               self.sigma_asym)

@@ -63,7 +63,7 @@ def twosep_force_implicit(z1: float, z2: float, w: float, b: float, hj: float) -
 
 
 @kernel
-def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, asym):
+def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, asym, sigma_asym):
     """Advance the 2SEP states over one step at velocity ``w``; returns (z1, z2, omega, qr, wsign)."""
     sg = 1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0)
     if sg != 0.0 and sg != wsign:
@@ -78,8 +78,9 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
     if k * abs(qr) < 40.0:
         z1 = z1 + sg * omega * (math.exp(-k * abs(qr)) - math.exp(-k * abs(qr_new)))
     level = stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape)
-    s_mag = level + sigma * abs(w)
-    s = sg * level + sigma * w  # = steady_state(w, ...), without evaluating the curve twice
+    slope = sigma * (1.0 + sigma_asym * sg)
+    s_mag = level + slope * abs(w)
+    s = sg * level + slope * w  # = steady_state(w, ...), without evaluating the curve twice
     z2 = (z2 + h * (s - z1) / s_mag) / (1.0 + h * b * abs(w) / s_mag)
     return z1, z2, omega, qr_new, wsign
 
@@ -102,6 +103,7 @@ class TwoSEP:
     k: float = 1000.0     # pre-sliding stiffness K [1/rad]: 95 % of Fc within 3 mrad at the motor
     b: float = 50.0       # attraction gain B [N·m/rad]: lag time constant |S|/(B|w|) ~ 2 ms at 1 rad/s
     asym: float = 0.0     # direction-dependent shift of Fc and Fs [N·m]
+    sigma_asym: float = 0.0  # viscous slope sigma (1 + sigma_asym sgn w); as StaticFriction.sigma_asym
 
     def __post_init__(self) -> None:
         check("fc", self.fc, 0.0, lo_open=True)
@@ -113,6 +115,7 @@ class TwoSEP:
         check("b", self.b, 0.0)
         lim = min(self.fc, self.fs)  # both directions keep positive friction levels
         check("asym", self.asym, -lim, lim, lo_open=True, hi_open=True)
+        check("sigma_asym", self.sigma_asym, -1.0, 1.0, lo_open=True, hi_open=True)
 
     def steady_state(self, w: float) -> float:
-        return steady_state(w, self.fc, self.fs, self.vs, self.shape, self.sigma, self.asym)
+        return steady_state(w, self.fc, self.fs, self.vs, self.shape, self.sigma, self.asym, self.sigma_asym)

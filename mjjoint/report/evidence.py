@@ -25,7 +25,7 @@ from .plots import MEASURED, axis_label, flat, save, style
 LOOPS = ("linear_stiffness", "nonlinear_stiffness", "transmission_hysteresis", "transmission_damping", "backlash")
 # Motor friction terms, and a constant input offset, which acts like friction that never reverses.
 MOTOR_FRICTION = ("coulomb_friction", "viscous_friction", "stribeck_friction", "dynamic_friction",
-                  "friction_asymmetry", "input_offset")
+                  "friction_asymmetry", "viscous_asymmetry", "input_offset")
 MAX_POINTS = 20_000   # scatter points per model: enough to see a shape, few enough for a small PNG
 BINS = 30
 RIPPLE_BINS_PER_CYCLE = 8
