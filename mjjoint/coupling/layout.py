@@ -36,15 +36,12 @@ def pack(params: JointParams, motor_qpos: int, motor_dof: int, link_qpos: int, l
     b = np.zeros(BLOCK_LEN)
     b[[MQ, MD, LQ, LD]] = motor_qpos, motor_dof, link_qpos, link_dof
     f = params.friction
+    if f is not None:  # the static map's fields, which 2SEP shares
+        b[[FC, FS, VS, SHAPE, SIGMA, ASYM, VASYM]] = f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.sigma_asym
     if isinstance(f, TwoSEP):
-        b[FKIND] = FRICTION_2SEP
-        b[[FC, FS, VS, SHAPE, SIGMA, K, B, ASYM]] = f.fc, f.fs, f.vs, f.shape, f.sigma, f.k, f.b, f.asym
-        b[VEPS] = 1.0
-        b[VASYM] = f.sigma_asym
+        b[[FKIND, K, B, VEPS]] = FRICTION_2SEP, f.k, f.b, 1.0
     elif isinstance(f, StaticFriction):
-        b[FKIND] = FRICTION_STATIC
-        b[[FC, FS, VS, SHAPE, SIGMA, ASYM, VEPS, VASYM]] = (f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps,
-                                                            f.sigma_asym)
+        b[[FKIND, VEPS]] = FRICTION_STATIC, f.v_eps
     t = params.transmission
     b[GEAR] = params.gear_ratio  # a direct drive: N = 1 and no stiffness, so T = 0
     b[MU] = 1.0
