@@ -204,3 +204,24 @@ def test_a_diagnosis_without_a_torque_recording_draws_its_loop_evidence(tmp_path
     path = plot_evidence("transmission_hysteresis", cmp, "before", "after", {"signals": {}}, {},
                          tmp_path / "loops.png", "delta")
     assert path.read_bytes()[:8] == PNG
+
+
+@pytest.mark.parametrize("joint_type, position, speed, force", [("slide", "m", "m/s", "N"),
+                                                                ("hinge", "rad", "rad/s", "N m")])
+def test_figures_name_the_plants_own_units(joint_type, position, speed, force):
+    """A linear direct drive's report shows m, m/s and N where a joint's shows rad, rad/s, N m."""
+    import dataclasses
+
+    from mjjoint.assets.drive import DriveSpec
+    from mjjoint.identify.structure import Structure
+    from mjjoint.report.compare import _plant_units
+    from mjjoint.report.evidence import _condition
+    from mjjoint.report.plots import axis_label
+
+    plant = dataclasses.replace(DriveSpec(), joint_type=joint_type)
+    units = _plant_units(Structure.create(("coulomb_friction",), plant, 1.0).nominal)
+    cmp = comparison()
+    cmp.plant_units = units
+    assert axis_label(cmp, "q").endswith(f"[{position}]") and axis_label(cmp, "tau").endswith(f"[{force}]")
+    assert _condition("coulomb_friction", cmp)[1] == f"motor velocity q' [{speed}]"
+    assert comparison().display("q") == ("rad", 1.0)  # a geared joint keeps the catalogue's

@@ -7,7 +7,7 @@ Everything the plots, the HTML page and the .rrd show comes from one ``Compariso
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -19,6 +19,7 @@ SIGNALS = ("q", "theta", "delta", "tau")  # what a window prediction holds, in d
 UNITS = {"q": ("rad", 1.0), "theta": ("deg", 180.0 / np.pi), "delta": ("mrad", 1e3), "tau": ("N m", 1.0)}
 LABELS = {"q": "motor angle q", "theta": "link angle theta", "delta": "deflection delta",
           "tau": "transmission torque tau"}
+ROTARY = ("rad", "rad/s", "N m")  # the units a plant may name otherwise (a slide: m, m/s, N)
 
 
 @dataclass
@@ -32,6 +33,16 @@ class Comparison:
     heldout: np.ndarray                         # bool per window
     cost: np.ndarray                            # bool per sample: used in the fit cost (after warmup)
     owned: np.ndarray                           # bool per window and sample: not in an earlier window
+    plant_units: dict[str, str] = field(default_factory=dict)  # rotary unit -> the plant's (a slide's m, N)
+
+    def unit(self, rotary: str) -> str:
+        """The plant's own unit for a quantity given in rotary units."""
+        return self.plant_units.get(rotary, rotary)
+
+    def display(self, signal: str) -> tuple[str, float]:
+        """Display unit and factor from SI of ``signal`` on this plant."""
+        unit, factor = UNITS[signal]
+        return self.unit(unit), factor
 
     @property
     def signals(self) -> tuple[str, ...]:
@@ -57,7 +68,14 @@ def compare(predictor: Predictor, models: dict[str, Structure]) -> Comparison:
         predicted={label: {s: p[s] for s in SIGNALS if s in p} for label, p in zip(models, preds)},
         conditions={k: v[idx] for k, v in (("q", m.q), ("theta", m.theta), ("qd", m.qd), ("thetad", m.thetad))
                     if v is not None},
-        heldout=np.asarray(predictor.holdout, bool).copy(), cost=cost, owned=predictor.owned.copy())
+        heldout=np.asarray(predictor.holdout, bool).copy(), cost=cost, owned=predictor.owned.copy(),
+        plant_units=_plant_units(next(iter(models.values())).nominal) if models else {})
+
+
+def _plant_units(plant) -> dict[str, str]:
+    """The rotary units a plant names otherwise: a direct drive's ``unit`` (m and N on a slide)."""
+    unit = getattr(plant, "unit", None)
+    return {} if unit is None else {u: unit(u) for u in ROTARY if unit(u) != u}
 
 
 def worst_signal(nrmse: dict[str, float], available) -> str:

@@ -19,7 +19,7 @@ from scipy.signal import welch
 
 from ..diagnosis.loop import EVIDENCE
 from ..identify.effects import EFFECTS
-from .compare import UNITS, Comparison
+from .compare import Comparison
 from .plots import MEASURED, axis_label, flat, save, style
 
 LOOPS = ("linear_stiffness", "nonlinear_stiffness", "transmission_hysteresis", "transmission_damping", "backlash")
@@ -75,11 +75,11 @@ def _condition(effect: str, cmp: Comparison) -> tuple[np.ndarray, str]:
     if effect == "gravity":
         return np.sin(c["theta"]), "sin(theta) (measured link angle)"
     if effect == "torque_ripple":
-        return np.mod(c["q"], 2 * np.pi), "q mod 2 pi [rad] (motor angle within one revolution)"
+        return np.mod(c["q"], 2 * np.pi), f"q mod 2 pi [{cmp.unit('rad')}] (motor angle within one revolution)"
     if effect == "load_friction":
-        return c["thetad"], "link velocity theta' [rad/s]"
+        return c["thetad"], f"link velocity theta' [{cmp.unit('rad/s')}]"
     if effect in MOTOR_FRICTION:
-        return c["qd"], "motor velocity q' [rad/s]"
+        return c["qd"], f"motor velocity q' [{cmp.unit('rad/s')}]"
     raise ValueError(f"no evidence plot is defined for effect {effect!r}")
 
 
@@ -94,7 +94,7 @@ def _versus(cmp: Comparison, labels, signal: str, x: np.ndarray, xlabel: str, ed
     xs = x[:, cmp.cost].ravel()
     centers = 0.5 * (edges[1:] + edges[:-1])
     pick = _subsample(xs.size)
-    factor = UNITS[signal][1]
+    factor = cmp.display(signal)[1]
     for i, label in enumerate(labels):
         r = factor * cmp.residual(label, signal)[:, cmp.cost].ravel()
         st = style(i, len(labels))
@@ -105,7 +105,7 @@ def _versus(cmp: Comparison, labels, signal: str, x: np.ndarray, xlabel: str, ed
         ax.plot(centers, med, color=st["color"], lw=2.2, label=f"measured - {label} (binned median)")
     ax.axhline(0, color="0.3", lw=0.8)
     ax.set_xlabel(xlabel)
-    ax.set_ylabel(axis_label(signal, "residual of "))
+    ax.set_ylabel(axis_label(cmp, signal, "residual of "))
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper right", fontsize=8)
     return fig
@@ -117,7 +117,7 @@ def _loops(cmp: Comparison, labels, zoom: float | None = None) -> Figure:
     rows = 1 if zoom is None else 2
     fig = Figure(figsize=(10, 4.5 * rows), layout="constrained")
     axes = np.atleast_2d(fig.subplots(rows, len(labels), sharey="row"))
-    dscale, tscale = UNITS["delta"][1], UNITS["tau"][1]
+    dscale, tscale = cmp.display("delta")[1], cmp.display("tau")[1]
     has_tau = "tau" in cmp.measured
     for row in range(rows):
         for i, (ax, label) in enumerate(zip(axes[row], labels)):
@@ -129,12 +129,12 @@ def _loops(cmp: Comparison, labels, zoom: float | None = None) -> Figure:
                     **{**style(i, len(labels)), "lw": 0.8})
             if row == 1:
                 _zoom(ax, curves, zoom, dscale, tscale)
-            ax.set_xlabel(axis_label("delta"))
+            ax.set_xlabel(axis_label(cmp, "delta"))
             ax.grid(True, alpha=0.3)
             ax.legend(loc="upper left", fontsize=8)
             ax.set_title(f"model {label}" + (" near delta = 0" if row else "")
                          + ("" if has_tau else " (no torque recorded: model loops only)"), fontsize=9)
-        axes[row][0].set_ylabel(axis_label("tau"))
+        axes[row][0].set_ylabel(axis_label(cmp, "tau"))
     return fig
 
 
@@ -205,14 +205,14 @@ def _spectrum(cmp: Comparison, labels, signal: str) -> Figure:
     fig = Figure(figsize=(8, 4.5), layout="constrained")
     ax = fig.subplots()
     dt = float(np.median(np.diff(cmp.t[0])))
-    factor = UNITS[signal][1]
+    factor = cmp.display(signal)[1]
     for i, label in enumerate(labels):
         r = factor * np.nan_to_num(cmp.residual(label, signal)[:, cmp.cost])
         f, p = welch(r - r.mean(axis=1, keepdims=True), fs=1.0 / dt, nperseg=r.shape[1], axis=1)
         st = style(i, len(labels))
         ax.loglog(f[1:], p.mean(axis=0)[1:], color=st["color"], ls=st["ls"], label=f"measured - {label}")
     ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel(f"residual power of {signal} [{UNITS[signal][0]}^2/Hz]")
+    ax.set_ylabel(f"residual power of {signal} [{cmp.display(signal)[0]}^2/Hz]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(loc="upper right", fontsize=8)
     return fig

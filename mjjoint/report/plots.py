@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from .compare import LABELS, UNITS, Comparison
+from .compare import LABELS, Comparison
 
 MEASURED = dict(color="black", lw=1.2, label="measured")
 STYLES = ({"color": "tab:red", "ls": "--", "lw": 1.2}, {"color": "tab:blue", "ls": "-", "lw": 1.0},
@@ -30,9 +30,8 @@ def flat(a: np.ndarray) -> np.ndarray:
     return np.concatenate([a, np.full((a.shape[0], 1), np.nan)], axis=1).ravel()
 
 
-def axis_label(signal: str, what: str = "") -> str:
-    unit = UNITS[signal][0]
-    return f"{what}{LABELS[signal]} [{unit}]"
+def axis_label(cmp: Comparison, signal: str, what: str = "") -> str:
+    return f"{what}{LABELS[signal]} [{cmp.display(signal)[0]}]"
 
 
 def save(fig: Figure, path: Path) -> Path:
@@ -56,7 +55,7 @@ def plot_windows(cmp: Comparison, signal: str, labels: Sequence[str], path: Path
     # Fixed margins: constrained layout costs ~1 s on four panels and gains nothing here.
     fig.subplots_adjust(left=0.08, right=0.98, top=1 - 0.75 / height, bottom=0.5 / height, hspace=0.45)
     axes = np.atleast_1d(fig.subplots(len(wins), 1))
-    factor = UNITS[signal][1]
+    factor = cmp.display(signal)[1]
     for ax, w in zip(axes, wins):
         t = cmp.t[w]
         meas = factor * cmp.measured[signal][w]
@@ -69,7 +68,7 @@ def plot_windows(cmp: Comparison, signal: str, labels: Sequence[str], path: Path
         pad = 0.5 * (hi - lo) + 1e-12
         ax.set_ylim(lo - pad, hi + pad)
         ax.axvspan(t[0], t[~cmp.cost][-1] if (~cmp.cost).any() else t[0], color="0.9", lw=0)
-        ax.set_ylabel(UNITS[signal][0])
+        ax.set_ylabel(cmp.display(signal)[0])
         ax.grid(True, alpha=0.3)
         ax.set_title(f"held-out window at {t[0]:.2f} s" if cmp.heldout[w] else f"window at {t[0]:.2f} s",
                      fontsize=9, loc="left")
@@ -84,7 +83,7 @@ def plot_residual_time(cmp: Comparison, signal: str, labels: Sequence[str], path
     """Prediction residual of ``signal`` over the whole recording, located windows shaded."""
     fig = Figure(figsize=(10, 3.6), layout="constrained")
     ax = fig.subplots()
-    factor = UNITS[signal][1]
+    factor = cmp.display(signal)[1]
     t = flat(cmp.t)
     for i, label in enumerate(labels):
         ax.plot(t, factor * flat(cmp.residual(label, signal)), label=f"measured - {label}",
@@ -99,7 +98,7 @@ def plot_residual_time(cmp: Comparison, signal: str, labels: Sequence[str], path
         ax.axvspan(cmp.t[w, 0], cmp.t[w, -1], ymin=0, ymax=0.03, color="0.4", lw=0,
                    label="held out" if w == np.flatnonzero(cmp.heldout)[0] else None)
     ax.set_xlabel("time [s]")
-    ax.set_ylabel(axis_label(signal, "residual of "))
+    ax.set_ylabel(axis_label(cmp, signal, "residual of "))
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper right", fontsize=8)
     ax.set_title("where the prediction misses (shaded: located windows, % of residual energy)")
