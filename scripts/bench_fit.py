@@ -72,7 +72,6 @@ NAMES = ("inertia.motor", "coulomb_friction.fc", "viscous_friction.sigma")
 # guess plausibly is (inertia +50 %, Coulomb halved, viscous doubled).
 START_FACTORS = {"inertia.motor": 1.5, "coulomb_friction.fc": 0.5, "viscous_friction.sigma": 2.0}
 CASE_SEED = 0
-QUANTUM_RMS = lambda bits: 2 * math.pi / (1 << bits) / math.sqrt(12)  # noqa: E731 (uniform rounding error)
 # (c): independent recordings of each truth the fits are also scored on, VALIDATION_LENGTH
 # times the fitted recording's length, all their windows.
 VALIDATION_SEEDS = (1, 2, 3)
@@ -102,6 +101,11 @@ FULL_SIZES = Sizes(steps=20000, repeats=7, duration=8.0, max_iter=25, mismatch=T
 QUICK_SIZES = Sizes(steps=2000, repeats=2, duration=3.0, max_iter=6, mismatch=False, diag_duration=6.0,
                     diag_options=DiagnoseOptions(candidates=("backlash",), max_rounds=1, fit_iter=3, screen_iter=2),
                     memory=(6.0, 12.0))
+
+
+def quantum_rms(bits: int) -> float:
+    """rms of an angle encoder's rounding error, lsb / sqrt(12) (uniform over one count)."""
+    return 2 * math.pi / (1 << bits) / math.sqrt(12)
 
 
 def say(msg: str) -> None:
@@ -352,7 +356,7 @@ def versus_sysid(label: str, truth: Structure, start: Structure, predictor: Pred
     # The replay's alignment: at the true values of an exact recording only the sensors'
     # quantisation noise (lsb / sqrt 12) is left; with a mismatch, it shows the model's miss.
     row["truth_replay_rms"] = problem.replay_error(at_truth)
-    row["quantisation_rms"] = {"q": QUANTUM_RMS(RESOLVER_BITS), "theta": QUANTUM_RMS(LINK_ENCODER_BITS)}
+    row["quantisation_rms"] = {"q": quantum_rms(RESOLVER_BITS), "theta": quantum_rms(LINK_ENCODER_BITS)}
     say("    sysid's replay at the true values, rms error: " + ", ".join(
         f"{k} {row['truth_replay_rms'][k]:.3g} rad (quantisation {row['quantisation_rms'][k]:.3g})"
         for k in ("q", "theta")))
