@@ -55,7 +55,7 @@ from bench_step import (  # the shared measurement
 
 from mjjoint.assets import build_arm, load_model
 from mjjoint.benchmark.cases import GEAR_RATIO, make_case
-from mjjoint.benchmark.recorder import LINK_ENCODER_BITS, RESOLVER_BITS, LabProgram, record
+from mjjoint.benchmark.recorder import LINK_ENCODER_BITS, RESOLVER_BITS, LabProgram, lsb, record
 from mjjoint.benchmark.score import run_case
 from mjjoint.diagnosis.loop import DiagnoseOptions, diagnose
 from mjjoint.identify import windows
@@ -105,7 +105,7 @@ QUICK_SIZES = Sizes(steps=2000, repeats=2, duration=3.0, max_iter=6, mismatch=Fa
 
 def quantum_rms(bits: int) -> float:
     """rms of an angle encoder's rounding error, lsb / sqrt(12) (uniform over one count)."""
-    return 2 * math.pi / (1 << bits) / math.sqrt(12)
+    return lsb(bits) / math.sqrt(12)
 
 
 def say(msg: str) -> None:
@@ -340,9 +340,16 @@ def versus_sysid(label: str, truth: Structure, start: Structure, predictor: Pred
            "sysid_seconds": sy["seconds"], "sysid_cpu_s": sy["cpu_s"], "sysid_iterations": sy["iterations"],
            "sysid_rollouts": sy["rollouts"], "time_ratio": ours.seconds / sy["seconds"],
            "cpu_ratio": ours_cpu / sy["cpu_s"]}
-    say(f"    {'':30}{'ours':>12}{'sysid':>12}{'at truth':>12}")
     # Third column: the fitted structure at the true values (with a mismatch, not the truth itself).
     at_truth = start.with_values({n: truth.values[n] for n in NAMES})
+    # The replay's alignment: at the true values of an exact recording only the sensors'
+    # quantisation noise (lsb / sqrt 12) is left; with a mismatch, it shows the model's miss.
+    row["truth_replay_rms"] = problem.replay_error(at_truth)
+    row["quantisation_rms"] = {"q": quantum_rms(RESOLVER_BITS), "theta": quantum_rms(LINK_ENCODER_BITS)}
+    say("    sysid's replay at the true values, rms error: " + ", ".join(
+        f"{k} {row['truth_replay_rms'][k]:.3g} rad (quantisation {row['quantisation_rms'][k]:.3g})"
+        for k in ("q", "theta")))
+    say(f"    {'':30}{'ours':>12}{'sysid':>12}{'at truth':>12}")
     duration = VALIDATION_LENGTH * (predictor.m.t[-1] - predictor.m.t[0])
     others = [Predictor(Measured.from_recording(lab_recording(truth, duration, seed), GEAR_RATIO),
                         WindowDesign(seed=seed)) for seed in VALIDATION_SEEDS]
@@ -353,13 +360,6 @@ def versus_sysid(label: str, truth: Structure, start: Structure, predictor: Pred
                                          for v in others],
                     "values": {n: s.values[n] for n in NAMES},
                     "rel_error": {n: abs(s.values[n] / truth.values[n] - 1) for n in NAMES}}
-    # The replay's alignment: at the true values of an exact recording only the sensors'
-    # quantisation noise (lsb / sqrt 12) is left; with a mismatch, it shows the model's miss.
-    row["truth_replay_rms"] = problem.replay_error(at_truth)
-    row["quantisation_rms"] = {"q": quantum_rms(RESOLVER_BITS), "theta": quantum_rms(LINK_ENCODER_BITS)}
-    say("    sysid's replay at the true values, rms error: " + ", ".join(
-        f"{k} {row['truth_replay_rms'][k]:.3g} rad (quantisation {row['quantisation_rms'][k]:.3g})"
-        for k in ("q", "theta")))
     for key, fmt in (("heldout_cost", "{:12.4g}"), ("sysid_objective", "{:12.4g}")):
         say(f"    {key:<30}" + "".join(fmt.format(row[w][key]) for w in ("ours", "sysid", "truth")))
     for k, seed in enumerate(VALIDATION_SEEDS):

@@ -81,9 +81,14 @@ class Controller:
     u_max: float = 1.3        # [N m] rated torque of the 400 W motor
 
 
+def lsb(bits: int) -> float:
+    """One count of a ``bits``-bit encoder per revolution [rad]."""
+    return 2 * math.pi / (1 << bits)
+
+
 def quantise(x: np.ndarray, bits: int) -> np.ndarray:
-    lsb = 2 * math.pi / (1 << bits)
-    return np.round(x / lsb) * lsb
+    step = lsb(bits)
+    return np.round(x / step) * step
 
 
 def record(arm: ArmSpec, joint: JointParams, program: LabProgram = LabProgram(),
