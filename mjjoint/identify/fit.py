@@ -10,7 +10,7 @@ below). Confidence intervals come from the
 Jacobian at the optimum (s^2 (J^T J)^-1, s^2 from the residual); a parameter whose 95 %
 interval is wider than its value, or that sits on a bound, is flagged.
 
-Robust cost over windows (``robust=True``; the diagnosis's final estimate, docs/diagnosis.md):
+Robust cost over windows (``robust=True``; the diagnosis's refits and final estimate, docs/diagnosis.md):
 the fitted objective is sum_i s log(1 + c_i / s) over the windows' mean squared residuals c_i
 (a Cauchy loss on whole windows), with the scale s the median window cost, re-estimated between
 LM runs (SCALE_ROUNDS); least squares is its limit s -> inf. Per-window costs are heavy tailed:
