@@ -311,7 +311,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     if options.robust_final:
         say("final estimate: refitting under the robust loss over windows")
         robust, keep = _robust(predictor, current, options, iterations)
-        say(f"robust estimate: held-out cost {robust.cost_test:.4g} against least squares' "
+        # ``current`` is least squares' estimate, or the last addition's robust refit (step 4).
+        say(f"robust estimate: held-out cost {robust.cost_test:.4g} against the current estimate's "
             f"{current.cost_test:.4g}: {'kept' if keep else 'not kept'}")
         if keep:
             current = robust
