@@ -6,9 +6,9 @@ residual is vectorised over parameter vectors: every finite-difference Jacobian 
 are optimised in log coordinates where they span decades. The LM runs first on a seeded
 quarter of the windows, then on all of them, and stops when its Gauss-Newton step is a tenth
 of the parameters' standard errors, or when a trial step fails within half of one (constants
-below). Confidence intervals come from the
-Jacobian at the optimum (s^2 (J^T J)^-1, s^2 from the residual); a parameter whose 95 %
-interval is wider than its value, or that sits on a bound, is flagged.
+below). 95 % intervals come from the Jacobian at the optimum, with the windows as the
+independent units (``intervals``: a window's residuals share its start-state error); a parameter
+whose interval is wider than its value, or that sits on a bound, is flagged.
 
 Robust cost over windows (``robust=True``; the diagnosis's refits and final estimate, docs/diagnosis.md):
 the fitted objective is sum_i s log(1 + c_i / s) over the windows' mean squared residuals c_i
@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from mujoco import minimize
 
+from .intervals import EIG_FLOOR, intervals, residual_variance
 from .structure import Structure
 from .windows import Predictor
 
@@ -165,16 +166,6 @@ def window_costs(predictor: Predictor, structure: Structure, windows: np.ndarray
     return predictor.window_mean_squares(r, len(windows))
 
 
-# Eigenvalues of J^T J below this share of the largest are taken as unidentifiable directions,
-# by the intervals and by the step rule alike.
-EIG_FLOOR = 1e-14
-
-
-def _variance(r: np.ndarray, nparams: int) -> float:
-    """The residual variance s^2 = r'r / (m - n) the intervals and the step rule are scaled by."""
-    return float(r @ r) / max(r.size - nparams, 1)
-
-
 class _Converged(Exception):
     """Raised from the Jacobian callback when the Gauss-Newton step is shorter than the tolerance."""
 
@@ -212,7 +203,7 @@ class _Objective:
         self.m = r.shape[0]
         self.costs.append(rr)
         self.steps_se.append(gauss_newton_step_se(jac, r[:, 0], x[:, 0], self.lo, self.hi))
-        s2 = _variance(r[:, 0], x.shape[0])
+        s2 = residual_variance(r[:, 0], x.shape[0])
         gained = (self.costs[-1 - STALL_ITER] - rr) / max(s2, 1e-300) if len(self.costs) > STALL_ITER else np.inf
         if self.steps_se[-1] < self.tol_se or gained < self.tol_se ** 2:
             raise _Converged
@@ -250,7 +241,7 @@ def gauss_newton_step_se(jac: np.ndarray, r: np.ndarray, x: np.ndarray, lo: np.n
     lam, vec = np.linalg.eigh(j.T @ j)
     keep = lam > max(float(lam.max()), 1e-300) * EIG_FLOOR
     d2 = float(np.sum((vec[:, keep].T @ g[free]) ** 2 / lam[keep]))
-    return float(np.sqrt(d2 / max(_variance(r, x.size), 1e-300)))
+    return float(np.sqrt(d2 / max(residual_variance(r, x.size), 1e-300)))
 
 
 def _lm(obj: _Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndarray, int]:
@@ -312,10 +303,11 @@ def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int
         scale = new
     best = structure.from_vector(x, names)
     r, jac = obj.final(x)
-    intervals, warnings = _intervals(jac, r, x, lo, hi, names, best)
+    spans, warnings = intervals(jac, r, x, lo, hi, names, best, predictor.window_blocks(jac, len(windows)),
+                                predictor.window_blocks(r, len(windows)))
     same = np.array_equal(windows, predictor.train)
     ctr, cte, ntr, nte = evaluate(predictor, best, obj.prediction(x) if same else None)
-    return FitResult(best, ctr, cte, ntr, nte, intervals, warnings, iterations=done,
+    return FitResult(best, ctr, cte, ntr, nte, spans, warnings, iterations=done,
                      rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start,
                      coarse_iterations=coarse_done)
 
@@ -334,34 +326,3 @@ def coarse_windows(windows: np.ndarray, seed: int) -> np.ndarray | None:
     if COARSE_SHARE <= 0 or 2 * n > len(windows):
         return None
     return np.sort(np.random.default_rng(seed).choice(windows, n, replace=False))
-
-
-def _intervals(jac, r, x, lo, hi, names, structure: Structure):
-    """95 % intervals in physical units from the Jacobian at the optimum."""
-    jac = np.asarray(jac)
-    s2 = _variance(r, x.size)
-    h = jac.T @ jac
-    lam, vec = np.linalg.eigh(h)
-    lam_max = max(float(lam.max()), 1e-300)
-    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # unidentifiable -> inf
-        inv_diag = np.array([np.sum(vec[j, :] ** 2 / np.maximum(lam, lam_max * EIG_FLOOR)) for j in range(len(x))])
-        half = np.nan_to_num(1.96 * np.sqrt(s2 * inv_diag), nan=np.inf)
-    params = {p.name: p for p in structure.params}
-    out, warnings = {}, []
-    for j, name in enumerate(names):
-        p = params[name]
-        a, b = p.from_unit(x[j] - half[j]), p.from_unit(x[j] + half[j])
-        out[name] = (min(a, b), max(a, b))
-        value = p.from_unit(x[j])
-        at_bound = x[j] <= lo[j] + 1e-9 or x[j] >= hi[j] - 1e-9
-        wide = (half[j] > np.log(2.0)) if p.log else (half[j] > max(abs(value), 1e-12))
-        if at_bound:
-            warnings.append(f"{name} = {value:.4g} sits on its bound [{p.lo:g}, {p.hi:g}]")
-        elif wide:
-            warnings.append(f"{name} = {value:.4g} is poorly identifiable from this recording "
-                            f"(95 % interval {out[name][0]:.3g} .. {out[name][1]:.3g})")
-    with np.errstate(over="ignore"):  # a singular J^T J: cond = inf, reported below
-        cond = float(lam.max() / max(lam.min(), 1e-300))
-    if cond > 1e12:
-        warnings.append(f"parameters are nearly collinear (cond(J^T J) = {cond:.1e})")
-    return out, warnings
