@@ -239,6 +239,7 @@ def test_columns_scales_and_torque_constant_reach_the_fit(files, fit_run, tmp_pa
     (["{rec}"], "--gear-ratio"),
     (["{rec}", "--model", "{model}", "--gear-ratio", "100"], "differs"),
     (["{rec}", "--gear-ratio", "160", "--window-length", "2"], "too short"),
+    (["{rec}", "--gear-ratio", "160", "--lead-in", "-1"], "--lead-in -1 must lie in [0, 60] s"),
 ])
 def test_bad_inputs_fail_in_one_line_with_exit_2(files, tmp_path, capsys, argv, message):
     backwards = tmp_path / "backwards.csv"

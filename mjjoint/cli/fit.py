@@ -94,6 +94,9 @@ def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
     w = p.add_argument_group("prediction windows")
     w.add_argument("--window-length", type=float, default=WindowDesign.length, metavar="S",
                    help=f"prediction horizon of each window (default {WindowDesign.length:g} s)")
+    w.add_argument("--lead-in", type=float, default=WindowDesign.lead, metavar="S",
+                   help="longest simulated lead-in of a window that starts at rest, for 2SEP's "
+                        f"states (default {WindowDesign.lead:g} s; 0: none)")
     w.add_argument("--seed", type=int, default=0, metavar="S", help="which windows are held out (default 0)")
     p.add_argument("--out", type=Path, default=default_out, metavar="DIR",
                    help=f"output folder (default {default_out})")
@@ -239,7 +242,7 @@ def load_problem(args: argparse.Namespace):
     rec = read_input(args, base.gear_ratio, args.k_m)
     if not isinstance(rec, Recording):
         return per_joint.load_problems(args, model, rec)
-    design = WindowDesign(length=args.window_length, seed=args.seed)
+    design = window_design(args)
     predictor = Predictor(Measured.from_recording(rec, base.gear_ratio), design)
     return Problem(str(args.recording), predictor, base, notes)
 
@@ -254,8 +257,14 @@ def _drive_problem(args: argparse.Namespace) -> Problem:
     rec = read_input(args, 1.0, args.k_m)
     if not isinstance(rec, Recording):
         raise CliError(f"--plant {args.plant} takes a single-joint recording")
-    design = WindowDesign(length=args.window_length, seed=args.seed)
+    design = window_design(args)
     return Problem(str(args.recording), Predictor(Measured.from_recording(rec, 1.0, output=False), design), base, [])
+
+
+def window_design(args: argparse.Namespace) -> WindowDesign:
+    if not 0 <= args.lead_in <= 60:
+        raise CliError(f"--lead-in {args.lead_in:g} must lie in [0, 60] s")
+    return WindowDesign(length=args.window_length, seed=args.seed, lead=args.lead_in)
 
 
 def run_info(command: str, args: argparse.Namespace, problem: Problem) -> dict:

@@ -20,10 +20,10 @@ from ..assets import ArmSpec
 from ..assets.multi import SerialArmFile
 from ..identify.effects import SEED_EFFECTS
 from ..identify.structure import Structure
-from ..identify.windows import Measured, Predictor, WindowDesign
+from ..identify.windows import Measured, Predictor
 from ..recordings import MultiRecording, Recording
 from .errors import CliError
-from .fit import Problem, effect_list, read_input, run_info, structure_from_model
+from .fit import Problem, effect_list, read_input, run_info, structure_from_model, window_design
 from .joint_view import single_joint_models
 
 COUPLING = ("each joint was diagnosed alone, so the other joints' motion (their inertia, Coriolis and gravity "
@@ -70,7 +70,7 @@ def load_problems(args: argparse.Namespace, model, rec: MultiRecording | Recordi
     if max(joints) > n:
         raise CliError(f"--joint {max(joints)}: {args.recording} holds {n} joints (1-{n})")
     bases, notes = starting_models(args, model, n)
-    design = WindowDesign(length=args.window_length, seed=args.seed)
+    design = window_design(args)
     problems = {}
     for j in joints:
         base = bases[j - 1]

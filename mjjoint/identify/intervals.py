@@ -5,7 +5,7 @@ Windowed prediction errors are not: a window whose start state is off (an unmeas
 memory, a biased start velocity) stays off for its whole length, so its hundreds of residuals
 carry one error, not hundreds. On the 20 s concealed dynamic_friction recordings (seeds 0-3, the
 true structure fitted from the truth, 44 parameters) that interval left the truth outside it in
-32 of 44 cases, up to 43 standard errors away (docs/benchmark.md, fourteenth investigation).
+31 of 44 cases, up to 14 standard errors away (docs/benchmark.md, fourteenth look).
 
 So the windows are treated as the independent units: the covariance is the delete-one-window
 jackknife, linearised at the optimum (for linear least squares it is exact),
@@ -18,8 +18,7 @@ information often sits in a few windows (a breakaway, a step). It is reported on
 wider than the independent-residual one (Angrist and Pischke, *Mostly Harmless Econometrics*,
 Sec. 8.2: the larger of the two, since a robust estimate from few clusters can come out too
 small), which also keeps directions that J'J does not determine at an infinite width. On the
-same 44 parameters the truth fell outside in 4 (dynamic_friction.b seed 0, 11 standard errors:
-a bias that every window shares, which no interval from these data can show).
+same 44 parameters the truth fell outside 2 (2SEP's B and K on seed 0, each just past its end).
 """
 from __future__ import annotations
 
