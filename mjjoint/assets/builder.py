@@ -105,6 +105,11 @@ def set_input(act, k_m: float, offset: float, delay: float) -> None:
     if delay > 0:
         act.delay = delay
         act.nsample = MAX_DELAY_SAMPLES + 2
+        # Linear interpolation of the control history: with MuJoCo's default zero-order hold a
+        # delay between two steps is rounded up to the next (1.6 ms delivered 2.0 ms at h = 0.5 ms);
+        # interpolated, a held input arrives exactly ``delay`` late in impulse, as the windows'
+        # delayed hold (identify/windows.py) models it.
+        act.interp = 1
 
 
 def _rebuild_rod(spec: mujoco.MjSpec, arm: ArmSpec) -> None:
