@@ -1,11 +1,9 @@
-"""2SEP states of windows that start at rest, from a simulated lead-in (Predictor._lead_in).
+"""2SEP states of windows that start at rest, from a simulated lead-in (Predictor._start_states).
 
 At rest the motor chatters below one encoder count and 2SEP's lag state winds up; the recording
 cannot show it, the model's own simulation of the dwell can.
 """
 from __future__ import annotations
-
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -14,16 +12,16 @@ from mjjoint.benchmark.cases import GEAR_RATIO, make_case
 from mjjoint.benchmark.recorder import LabProgram, record
 from mjjoint.identify.fit import fit
 from mjjoint.identify.structure import Structure
-from mjjoint.identify.windows import REVERSAL_BAND, Measured, Predictor, WindowDesign
+from mjjoint.identify.windows import REVERSAL_BAND, Measured, Predictor, WindowDesign, lead_samples
 from mjjoint.recordings import Recording
 
 RATE = 1000.0
 
 
 def _leads(qd, starts, lead=1.0, joins=()):
-    """Predictor._leads on a bare velocity record (noise 1e-4 rad: moving above 0.3 rad/s)."""
-    m = SimpleNamespace(qd=np.asarray(qd, float), q_noise=1e-4, rate=RATE, joins=tuple(joins))
-    return Predictor._leads(SimpleNamespace(m=m, design=WindowDesign(lead=lead)), np.asarray(starts))
+    """Lead-ins on a bare velocity record, as a Predictor asks for them (noise 1e-4 rad: moving
+    above 0.3 rad/s)."""
+    return lead_samples(np.asarray(qd, float), REVERSAL_BAND * 1e-4 * RATE, starts, joins, int(round(lead * RATE)))
 
 
 def test_a_resting_start_leads_in_from_the_last_motion_within_the_cap_and_its_log():
@@ -56,7 +54,7 @@ def test_only_2sep_models_and_only_their_resting_windows_are_changed(lab):
         for k in a:
             np.testing.assert_array_equal(a[k], b[k])
     (a,), (b,) = without.predict([truth]), with_lead.predict([truth])
-    resting = with_lead._leads(with_lead.starts) > 0
+    resting = with_lead.lead_samples > 0
     assert 0 < resting.sum() < len(resting)
     np.testing.assert_array_equal(a["q"][~resting], b["q"][~resting])
     assert np.all(np.any(a["q"][resting] != b["q"][resting], axis=1))
@@ -65,7 +63,7 @@ def test_only_2sep_models_and_only_their_resting_windows_are_changed(lab):
 def test_a_window_is_predicted_alike_whatever_windows_come_with_it(lab):
     truth, measured = lab
     pred = Predictor(measured, WindowDesign(seed=0))
-    resting = np.flatnonzero(pred._leads(pred.starts) > 0)
+    resting = np.flatnonzero(pred.lead_samples > 0)
     (every,) = pred.predict([truth])
     (some,) = pred.predict([truth], resting[::3])
     for k in every:

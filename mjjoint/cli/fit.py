@@ -18,7 +18,7 @@ from ..assets import ArmSpec, DriveSpec
 from ..assets.multi import read_model_file
 from ..identify.effects import EFFECTS, SEED_EFFECTS, check_effects, plant_effects
 from ..identify.structure import Structure
-from ..identify.windows import Measured, Predictor, WindowDesign
+from ..identify.windows import MAX_LEAD, Measured, Predictor, WindowDesign
 from ..joint import JointParams
 from ..modelfile import ModelFile
 from ..physics.twosep import TwoSEP
@@ -262,8 +262,8 @@ def _drive_problem(args: argparse.Namespace) -> Problem:
 
 
 def window_design(args: argparse.Namespace) -> WindowDesign:
-    if not 0 <= args.lead_in <= 60:
-        raise CliError(f"--lead-in {args.lead_in:g} must lie in [0, 60] s")
+    if not 0 <= args.lead_in <= MAX_LEAD:
+        raise CliError(f"--lead-in {args.lead_in:g} must lie in [0, {MAX_LEAD:g}] s")
     return WindowDesign(length=args.window_length, seed=args.seed, lead=args.lead_in)
 
 

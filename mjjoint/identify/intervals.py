@@ -61,16 +61,15 @@ def window_jackknife_variances(jac_blocks: np.ndarray, r_blocks: np.ndarray) -> 
     return (g - 1) / g * np.sum(d ** 2, axis=0)
 
 
-def intervals(jac, r, x, lo, hi, names, structure, jac_blocks=None, r_blocks=None):
+def intervals(jac, r, x, lo, hi, names, structure, jac_blocks, r_blocks):
     """95 % intervals in physical units from the Jacobian at the optimum, and warnings.
 
-    With the residuals grouped by window (``jac_blocks``, ``r_blocks``), each half-width is the
-    wider of the independent-residual and the window-jackknife one (module doc).
+    ``jac_blocks``, ``r_blocks``: the same Jacobian and residual grouped by window; each
+    half-width is the wider of the independent-residual and the window-jackknife one (module doc).
     """
     jac = np.asarray(jac)
     var, lam = independent_variances(jac, r)
-    if jac_blocks is not None:
-        var = np.maximum(var, window_jackknife_variances(jac_blocks, r_blocks))
+    var = np.maximum(var, window_jackknife_variances(jac_blocks, r_blocks))
     half = 1.96 * np.sqrt(var)
     params = {p.name: p for p in structure.params}
     out, warnings = {}, []

@@ -73,6 +73,9 @@ REVERSAL_BAND = 3.0
 # than JUMP_SHARE of u's 1-99 % range within one sample: a 30 Hz chirp turns its slope by
 # 1.8 % of its range per sample, a lab step by 20-50 %.
 JUMP_SHARE = 0.05
+# Longest lead-in a window may ask for [s] (WindowDesign.lead): far beyond any dwell a lead-in is
+# for, and a bound on its cost.
+MAX_LEAD = 60.0
 
 
 @dataclass(frozen=True)
@@ -82,13 +85,13 @@ class WindowDesign:
     decimate: int = 2          # residual every k-th sample
     holdout: float = 0.25      # share of windows held out of fitting
     seed: int = 0              # which windows: random, so the split cannot alias with the excitation
-    lead: float = 1.0          # [s] longest lead-in of a window that starts at rest (Predictor._lead_in)
+    lead: float = 1.0          # [s] longest lead-in of a window that starts at rest (Predictor._start_states)
 
     def __post_init__(self) -> None:
         if not 0 < self.warmup < self.length:
             raise ValueError(f"warmup={self.warmup} must lie in (0, length={self.length})")
-        if not 0 <= self.lead <= 60:
-            raise ValueError(f"lead={self.lead} must lie in [0, 60] s")
+        if not 0 <= self.lead <= MAX_LEAD:
+            raise ValueError(f"lead={self.lead} must lie in [0, {MAX_LEAD:g}] s")
 
 
 @dataclass
@@ -280,28 +283,34 @@ class Predictor:
             register_model(mod)  # a memoised model's registry row may have been recycled
         jis = [joint_indices(mod)[0] for mod in models]  # parsed once per model and call
         i0 = self.starts[windows]
-        x0 = np.concatenate([self._lead_in(mod, ji, d, i0, self._initial_states(mod, i0, ji))
-                             for mod, d, ji in zip(models, delays, jis)])
+        x0 = np.concatenate([self._start_states(mod, ji, d, windows) for mod, d, ji in zip(models, delays, jis)])
         ctrl = np.concatenate([self._controls(mod, i0, self.nwin_samples, d, ji)
                                for mod, d, ji in zip(models, delays, jis)])
         batch_models = [mod for mod in models for _ in windows]
-        datas = self._datas(models[0])
         sub = self._substeps(models[0])
-        nw, nrow, nstep, nx, nsens = len(windows), len(batch_models), ctrl.shape[1], x0.shape[1], models[0].nsensordata
-        chunk = max(len(datas), min(nrow, ROLLOUT_BUFFER // (8 * nstep * (nx + nsens))))
-        state, sens = np.empty((chunk, nstep, nx)), np.empty((chunk, nstep, nsens))
+        nw = len(windows)
         parts = [[] for _ in models]
-        for a in range(0, nrow, chunk):
-            b = min(a + chunk, nrow)
-            with mujoco_log_silenced():
-                mj_rollout.rollout(batch_models[a:b], datas, x0[a:b], ctrl[a:b], state=state[:b - a],
-                                   sensordata=sens[:b - a], persistent_pool=True)
+        for a, b, state in self._rollouts(batch_models, x0, ctrl):
             for k in range(a // nw, (b - 1) // nw + 1):  # the models whose windows this chunk holds
                 lo, hi = max(a, k * nw), min(b, (k + 1) * nw)
                 picked = state[lo - a:hi - a, sub - 1::sub][:, : self.nwin_samples - 1]
                 parts[k].append(self._signals(models[k], np.concatenate([x0[lo:hi, None], picked], axis=1), jis[k]))
         self.rollouts += len(structures) * len(windows) / len(self.starts)
         return [p[0] if len(p) == 1 else {s: np.concatenate([q[s] for q in p]) for s in p[0]} for p in parts]
+
+    def _rollouts(self, models: list, x0: np.ndarray, ctrl: np.ndarray):
+        """Roll out rows (models, x0, ctrl) in chunks that fit ROLLOUT_BUFFER; yields (a, b,
+        states of rows a..b), a view valid until the next chunk."""
+        datas = self._datas(models[0])
+        nrow, nstep, nx, nsens = len(models), ctrl.shape[1], x0.shape[1], models[0].nsensordata
+        chunk = max(len(datas), min(nrow, ROLLOUT_BUFFER // (8 * nstep * (nx + nsens))))
+        state, sens = np.empty((chunk, nstep, nx)), np.empty((chunk, nstep, nsens))
+        for a in range(0, nrow, chunk):
+            b = min(a + chunk, nrow)
+            with mujoco_log_silenced():
+                mj_rollout.rollout(models[a:b], datas, x0[a:b], ctrl[a:b], state=state[:b - a],
+                                   sensordata=sens[:b - a], persistent_pool=True)
+            yield a, b, state[:b - a]
 
     def _datas(self, model) -> list:
         """Scratch MjData for the rollout threads, one set per model signature, kept across
@@ -360,8 +369,9 @@ class Predictor:
         x0[:, ji.state_start:ji.state_start + NSTATE] = states
         return x0
 
-    def _lead_in(self, model, ji, delay: float, i0: np.ndarray, x0: np.ndarray) -> np.ndarray:
-        """``x0`` with the 2SEP states of the windows that start at rest taken from a lead-in.
+    def _start_states(self, model, ji, delay: float, windows: np.ndarray) -> np.ndarray:
+        """Full MuJoCo states at the starts of ``windows``; for 2SEP, those that start at rest take
+        2SEP's states from a lead-in.
 
         At rest a motor chatters far below one encoder count (20 s concealed cases: ~80 sign
         changes a second, 1e-8 rad each). Every sign change switches the drive of 2SEP's lag
@@ -370,53 +380,39 @@ class Predictor:
         (constant at rest) winds z2 up differently: -0.44 against the truth's -0.31 before a
         breakaway, which a fit made up by scaling B to 0.71 of the truth. The model itself,
         simulated under the measured input from the last sample where the motor still moved
-        (at most ``design.lead`` back; a join bounds it too), reproduces the truth's z1 and z2
-        at 11 of 12 such starts to 1 % (docs/benchmark.md, fourteenth look). Only the 2SEP states are taken: the
-        window still starts from the measured motion, and Bouc-Wen's x follows the path anyway.
-        The motor moves while its velocity exceeds one play band (REVERSAL_BAND noise std) per
-        sample. The lead-ins cost up to ``design.lead`` of simulation per resting window.
+        (``lead_samples``), reproduces the truth's z1 and z2 at 11 of 12 such starts to 1 %
+        (docs/benchmark.md, fourteenth look). Only the 2SEP states are taken: the window still
+        starts from the measured motion, and Bouc-Wen's x follows the path anyway. The lead-ins
+        cost up to ``design.lead`` of simulation per resting window.
         """
-        if ji.block[FKIND] != FRICTION_2SEP:
-            return x0
-        lead = self._leads(i0)
+        i0 = self.starts[windows]
+        lead = self.lead_samples[windows] if ji.block[FKIND] == FRICTION_2SEP else np.zeros(len(i0), int)
         rows = np.flatnonzero(lead > 0)
+        lead = lead[rows]
+        # One history run serves the window starts and the lead-ins' starts.
+        x = self._initial_states(model, np.concatenate([i0, i0[rows] - lead]), ji)
+        x0, first = x[:len(i0)], x[len(i0):]
         if rows.size == 0:
             return x0
-        first, lead = i0[rows] - lead[rows], lead[rows]
         sub = self._substeps(model)
         n = int(lead.max()) + 1
-        start = self._initial_states(model, first, ji)
-        ctrl = self._controls(model, first, n, delay, ji)
-        datas = self._datas(model)
-        nstep, nx, nsens = ctrl.shape[1], x0.shape[1], model.nsensordata
-        chunk = max(len(datas), ROLLOUT_BUFFER // (8 * nstep * (nx + nsens)))
-        state, sens = np.empty((min(chunk, len(rows)), nstep, nx)), np.empty((min(chunk, len(rows)), nstep, nsens))
-        end = np.empty((len(rows), nx))
-        for a in range(0, len(rows), chunk):
-            b = min(a + chunk, len(rows))
-            with mujoco_log_silenced():
-                mj_rollout.rollout([model] * (b - a), datas, start[a:b], ctrl[a:b], state=state[:b - a],
-                                   sensordata=sens[:b - a], persistent_pool=True)
+        ctrl = self._controls(model, i0[rows] - lead, n, delay, ji)
+        end = np.empty_like(first)
+        for a, b, state in self._rollouts([model] * len(rows), first, ctrl):
             end[a:b] = state[np.arange(b - a), lead[a:b] * sub - 1]  # each at its own window's start
         st, _ = _settled(model, ji, end)
-        x0 = x0.copy()
         x0[rows, ji.state_start:ji.state_start + X] = st[:, :X]
         self.rollouts += len(rows) * (n - 1) / (len(self.starts) * (self.nwin_samples - 1))
         return x0
 
-    def _leads(self, i0: np.ndarray) -> np.ndarray:
-        """Lead-in of each start [samples]: 0 where the motor moves at the start."""
+    @cached_property
+    def lead_samples(self) -> np.ndarray:
+        """Lead-in of each window [samples] (``_start_states``): back to the last sample where the
+        motor moved faster than one play band (REVERSAL_BAND noise std) per sample, at most
+        ``design.lead`` and never across a join; 0 where the motor moves at the start."""
         m = self.m
-        if self.design.lead <= 0:
-            return np.zeros(len(i0), int)
-        moving = np.abs(m.qd) > REVERSAL_BAND * m.q_noise * m.rate
-        last = np.maximum.accumulate(np.where(moving, np.arange(len(moving)), -1))
-        bounds = np.array([0, *m.joins])
-        floor = bounds[np.searchsorted(bounds, i0, side="right") - 1]  # the join each start follows
-        floor = np.maximum(floor, i0 - int(round(self.design.lead * m.rate)))
-        prev = np.where(i0 > 0, last[np.maximum(i0 - 1, 0)], -1)
-        first = np.maximum(prev, floor)
-        return np.where(moving[i0], 0, i0 - first)
+        return lead_samples(m.qd, REVERSAL_BAND * m.q_noise * m.rate, self.starts, m.joins,
+                            int(round(self.design.lead * m.rate)))
 
     def _controls(self, model, i0: np.ndarray, n: int, delay: float, ji) -> np.ndarray:
         """Per-step controls of ``n``-sample runs from samples ``i0``: the zero-order-held input
@@ -474,6 +470,21 @@ class Predictor:
     @property
     def test(self) -> np.ndarray:
         return np.flatnonzero(self.holdout)
+
+
+def lead_samples(qd: np.ndarray, moving_speed: float, starts: np.ndarray, joins, cap: int) -> np.ndarray:
+    """Samples from the last one where |qd| exceeded ``moving_speed`` to each start, at most
+    ``cap`` and not across a join; 0 for a start where the motor moves (or ``cap`` is 0)."""
+    starts = np.asarray(starts)
+    if cap <= 0:
+        return np.zeros(len(starts), int)
+    moving = np.abs(qd) > moving_speed
+    last = np.maximum.accumulate(np.where(moving, np.arange(len(moving)), -1))
+    bounds = np.array([0, *joins])
+    floor = bounds[np.searchsorted(bounds, starts, side="right") - 1]  # the join each start follows
+    floor = np.maximum(floor, starts - cap)
+    prev = np.where(starts > 0, last[np.maximum(starts - 1, 0)], -1)
+    return np.where(moving[starts], 0, starts - np.maximum(prev, floor))
 
 
 def _settled(model, ji, flat: np.ndarray):
