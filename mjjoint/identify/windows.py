@@ -380,7 +380,7 @@ class Predictor:
         (constant at rest) winds z2 up differently: -0.44 against the truth's -0.31 before a
         breakaway, which a fit made up by scaling B to 0.71 of the truth. The model itself,
         simulated under the measured input from the last sample where the motor still moved
-        (``lead_samples``), reproduces the truth's z1 and z2 at 11 of 12 such starts to 1 %
+        (``lead_samples``), reproduces the truth's z1 and z2 at 9 of 10 such starts to 1 %
         (docs/benchmark.md, fourteenth look). Only the 2SEP states are taken: the window still
         starts from the measured motion, and Bouc-Wen's x follows the path anyway. The lead-ins
         cost up to ``design.lead`` of simulation per resting window.
