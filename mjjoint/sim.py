@@ -38,9 +38,12 @@ class JointIndex:
     actuator: int         # actuator driving the motor joint (-1: none)
     k_m: float
 
-    def step_over_inertia(self, model: mujoco.MjModel) -> float:
-        """h/J of the motor dof, as the plugin's compute reads it (``kernels.motor_friction``)."""
-        return float(model.opt.timestep * model.dof_invweight0[self.motor_dof]) if self.motor_dof >= 0 else 0.0
+    def step_over_inertia(self, model: mujoco.MjModel) -> tuple[float, float]:
+        """h/J of the motor and the link dof (0 for a side fixed to the world), as the plugin's
+        compute reads them (``kernels.joint_evaluate``)."""
+        h, invw = model.opt.timestep, model.dof_invweight0
+        return (float(h * invw[self.motor_dof]) if self.motor_dof >= 0 else 0.0,
+                float(h * invw[self.link_dof]) if self.link_dof >= 0 else 0.0)
 
 
 def joint_indices(model: mujoco.MjModel) -> list[JointIndex]:
@@ -187,9 +190,11 @@ class Simulator:
             theta = qpos[:, ji.link_qpos] if ji.link_qpos >= 0 else zero
             qd = qvel[:, ji.motor_dof] if ji.motor_dof >= 0 else zero
             thd = qvel[:, ji.link_dof] if ji.link_dof >= 0 else zero
+            h = self.model.opt.timestep
+            hj, hjl = ji.step_over_inertia(self.model)
             st = settled_states(ji.block, np.ascontiguousarray(states[:, ji.state_start:ji.state_start + NSTATE]),
-                                states[:, 0], q, qd, theta, thd, self.model.opt.timestep)
-            tau, fric, load = joint_traces(ji.block, st, q, qd, theta, thd, ji.step_over_inertia(self.model))
+                                states[:, 0], q, qd, theta, thd, h, hj, hjl)
+            tau, fric, load = joint_traces(ji.block, st, q, qd, theta, thd, h, hj, hjl)
             out.append(Trace(t=states[:, 0].copy(), u=u2[:, j].copy(), q=q.copy(), theta=theta.copy(),
                              qd=qd.copy(), thetad=thd.copy(), tau=tau, friction=fric, load_friction=load,
                              states=st, gear_ratio=ji.gear_ratio, qpos=qpos.copy()))

@@ -46,12 +46,11 @@ def twosep_force(z1, z2, w, b):
     return 1.0 * z1 + (lag if sgn(z2) == sgn(w) != 0 else 0.0)
 
 
-def twosep_force_implicit(z1, z2, w, b, hj):
-    """Eq. 11 with the lag damper c = B|z2| of a backward-Euler step on inertia J, hj = h/J:
-    its force c w1 at the end velocity w1 solves w1 = w - hj c w1."""
-    c = b * abs(z2) if sgn(z2) == sgn(w) != 0 else 0.0
-    w1 = w / (1.0 + hj * c)
-    return z1 + c * w1
+def lag_target(w, fc, fs, vs, shape, sigma, asym, sigma_asym):
+    """S(w) as Eq. 14 drives z2 with it: sgn(w) regularised, tanh over a tenth of Vs."""
+    d = sgn(w)
+    return (math.tanh(w / (0.1 * vs)) * stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape)
+            + sigma * (1 + sigma_asym * d) * w)
 
 
 def _presliding_primitive(s, k):
@@ -77,9 +76,12 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
     qr_end = qr + w * h
     z1 = z1 + abs(omega) * (_presliding_primitive(qr_end, k) - _presliding_primitive(qr, k))
     s_abs = stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape) + sigma * (1 + sigma_asym * d) * abs(w)
-    target = steady_state(w, fc, fs, vs, shape, sigma, asym, sigma_asym)
-    # Backward Euler: z2' = z2 + h (S - z1' - B|w| z2') / |S|, linear in z2'.
-    z2 = (z2 + h * (target - z1) / s_abs) / (1.0 + h * b * abs(w) / s_abs)
+    target = lag_target(w, fc, fs, vs, shape, sigma, asym, sigma_asym)
+    # z2' = (target - z1)/|S| - (B|w|/|S|) z2 with w and z1 frozen: the exact exponential solution.
+    lam = b * abs(w) / s_abs
+    drive = (target - z1) / s_abs
+    # (1 - e^{-lam h}) / lam, with its limit h where lam h is too small to carry digits
+    z2 = z2 * math.exp(-lam * h) + (drive * -math.expm1(-lam * h) / lam if lam * h > 1e-12 else drive * h)
     return z1, z2, omega, qr_end, wsign
 
 
@@ -170,13 +172,17 @@ class JointState:
         return [self.z1, self.z2, self.omega, self.q_r, self.w_sign, self.x]
 
 
-def _motor_friction(p: JointParams, s: JointState, wq: float, hj: float) -> float:
-    f = p.friction
-    if isinstance(f, TwoSEP):
-        return twosep_force_implicit(s.z1, s.z2, wq, f.b, hj)
-    if isinstance(f, StaticFriction):
-        return static_friction(wq, f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps, f.sigma_asym)
-    return 0.0
+def static_friction_slope(w, fc, fs, vs, shape, sigma, asym, v_eps, sigma_asym):
+    """dF/dw of the regularised static map F = d L(w) + sigma (1 + sigma_asym d) w, d = tanh(w/v_eps),
+    L = Fc + asym d + (Fs - Fc) exp(-|w/Vs|^shape), by the product and chain rules."""
+    d = math.tanh(w / v_eps)
+    dd = (1.0 - d * d) / v_eps
+    r = abs(w) / vs
+    decay = math.exp(-r ** shape)
+    level = fc + asym * d + (fs - fc) * decay
+    # d/dw exp(-r^shape) = -exp(-r^shape) shape r^(shape-1) sgn(w) / Vs; d times it vanishes at w = 0
+    dlevel = asym * dd + ((fs - fc) * -decay * shape * r ** (shape - 1.0) * sgn(w) / vs if r > 0 else 0.0)
+    return dd * level + d * dlevel + sigma * (1.0 + sigma_asym * d) + sigma * sigma_asym * dd * w
 
 
 def _transmitted(p: JointParams, s: JointState, q, wq, theta, wtheta) -> float:
@@ -186,12 +192,68 @@ def _transmitted(p: JointParams, s: JointState, q, wq, theta, wtheta) -> float:
                                t.damping, t.backlash)
 
 
-def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, hj) -> tuple[float, float]:
-    """(motor, link) generalised forces: u side m q'' = -T/N - f + r, link M theta'' = T - F_L."""
+def stiffness_limit(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl, t, other):
+    """The transmission's stiffness above 3 J_rel / h^2 (J_rel: motor and link inertias in series,
+    1/J = hj/h) taken position-implicitly: its torque (k - k_lim) h rate1 at the deflection rate
+    rate1 the step ends with, J_rel (rate1 - rate) / h = other - t - (k - k_lim) h rate1, where t
+    is the spring's torque and ``other`` the rest on the deflection (NaN: unknown, taken as t)."""
+    tr = p.transmission
+    n = tr.gear_ratio
+    de = engaged(q / n - theta, tr.backlash)
+    r = h * (hj / n ** 2 + hjl)  # h^2 / J_rel
+    if r <= 0 or (de == 0.0 and tr.backlash > 0):
+        return 0.0
+    bw = tr.hysteresis
+
+    def tangent(v):  # d/dv of k1 v + k2 v|v| + k3 v^3
+        return tr.k1 + 2 * tr.k2 * abs(v) + 3 * tr.k3 * v * v
+
+    k = tr.mu * tangent(de) + (1 - tr.mu) * (bw.a if bw is not None else 1.0) * tangent(s.x)
+    excess = k - 3.0 / r
+    if excess <= 0:
+        return 0.0
+    if math.isnan(other):
+        other = t
+    j_rel = h * h / r
+    rate1 = (j_rel * (wq / n - wtheta) / h + other - t) / (j_rel / h + excess * h)
+    return excess * h * rate1
+
+
+def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl, other=math.nan,
+                 other_t=math.nan):
+    """(motor, link) generalised forces: u side m q'' = -T/N - f + r, link M theta'' = T - F_L.
+
+    The motor's torque is taken at the velocity w1 its step ends with: w1 = wq + hj (other +
+    f(w1)) with f linear in w1 (its velocity slopes at wq: friction, the engaged teeth's damping
+    D/N^2, and the 2SEP lag damper B|z2|, which acts only if w1 has z2's sign). ``other``: the
+    motor's other torques; unknown (NaN), those balancing f without the lag.
+    """
     t = _transmitted(p, s, q, wq, theta, wtheta)
-    motor = -t / p.transmission.gear_ratio - _motor_friction(p, s, wq, hj)
+    t += stiffness_limit(p, s, q, wq, theta, wtheta, h, hj, hjl, t, other_t)
+    tr = p.transmission
+    n = tr.gear_ratio
+    f = p.friction
+    base, slope = 0.0, 0.0
+    if isinstance(f, TwoSEP):
+        base = s.z1
+    elif isinstance(f, StaticFriction):
+        args = (f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps, f.sigma_asym)
+        base, slope = static_friction(wq, *args), max(0.0, static_friction_slope(wq, *args))
+    motor = -t / n - base
     if p.ripple is not None:
         motor += ripple_torque(q, p.ripple.amplitude, p.ripple.harmonic, p.ripple.phase)
+    engaged_teeth = tr.backlash == 0.0 or engaged(q / n - theta, tr.backlash) != 0.0
+    g = -(tr.damping if engaged_teeth else 0.0) / n ** 2 - slope
+    if math.isnan(other):
+        other = -motor
+    # Without the lag: w1 (1 - g hj) = wq (1 - g hj) + hj (other + motor).
+    w1 = wq + hj * (other + motor) / (1.0 - g * hj)
+    lag = 0.0
+    if isinstance(f, TwoSEP) and sgn(s.z2) == sgn(w1) != 0:
+        c = f.b * abs(s.z2)
+        w1 = (wq * (1.0 - g * hj) + hj * (other + motor)) / (1.0 - g * hj + c * hj)
+        lag = c * w1
+    motor = motor + g * (w1 - wq) - lag
     link = t
     if p.load_friction is not None:
         lf = p.load_friction

@@ -16,7 +16,8 @@ from hypothesis import strategies as st
 
 import reference as ref
 from mjjoint.coupling import kernels
-from mjjoint.coupling.layout import AT, NSTATE, pack
+from mjjoint.assets.drive import drive_joint
+from mjjoint.coupling.layout import AT, FO, FOT, FP, NSTATE, TP, WP, WPL, pack
 from mjjoint.joint import JointParams
 from mjjoint.physics import boucwen, load, ripple, stribeck, transmission, twosep
 from mjjoint.physics.boucwen import BoucWen
@@ -126,21 +127,6 @@ def test_twosep_force(z1, z2, w, b):
 
 
 @SETTINGS
-@given(z1=finite(-2.0, 2.0), z2=finite(-50.0, 50.0), w=velocity, b=finite(0.0, 500.0), hj=finite(0.0, 1e3))
-@example(z1=0.08, z2=1.0, w=0.0, b=50.0, hj=10.0)
-def test_twosep_force_implicit(z1, z2, w, b, hj):
-    f = twosep.twosep_force_implicit(z1, z2, w, b, hj)
-    assert close(f, ref.twosep_force_implicit(z1, z2, w, b, hj), scale=abs(z1) + abs(b * w * z2))
-    # The lag damper alone never reverses nor amplifies the velocity over a step, whatever its
-    # slope (the explicit form does once B|z2| h/J > 2), and it is the literal force as h/J -> 0.
-    # The lag force alone (z1 = 0): f - z1 would lose its digits to z1 when it is tiny.
-    w1 = w - hj * twosep.twosep_force_implicit(0.0, z2, w, b, hj)
-    assert w1 * w >= -1e-12 * w * w and abs(w1) <= abs(w) * (1 + 1e-12)
-    assert close(twosep.twosep_force_implicit(z1, z2, w, b, 0.0), twosep.twosep_force(z1, z2, w, b),
-                 scale=abs(z1) + abs(b * w * z2))
-
-
-@SETTINGS
 @given(s=reachable_2sep_states(), w=velocity, h=finite(1e-5, 1e-2), p=twoseps())
 @example(s=(0.0, 0.0, 0.0, 0.0, 0.0), w=0.0, h=5e-4, p=TwoSEP())           # rest, no motion
 @example(s=(0.0, 0.0, 0.0, 0.0, 0.0), w=0.2, h=5e-4, p=TwoSEP())           # first motion
@@ -192,6 +178,37 @@ def test_engaged(delta, backlash):
 
 
 @SETTINGS
+@given(z2=finite(-50.0, 50.0), w=velocity, b=finite(0.0, 500.0), hj=finite(0.0, 1e3))
+@example(z2=1.0, w=0.0, b=50.0, hj=10.0)
+@example(z2=0.5, w=0.05, b=50.0, hj=10.0)
+def test_lag_damper_never_reverses_nor_amplifies(z2, w, b, hj):
+    """A free rotor with only 2SEP's lag (z1 = 0, nothing else acting): whatever the slope
+    B|z2| h/J, its step neither reverses nor amplifies the velocity (the explicit force does once
+    the slope passes 2), and the torque is the literal B|w|z2 as h/J -> 0."""
+    p = drive_joint(JointParams(friction=TwoSEP(b=b)))
+    blk = pack(p, 0, 0, -1, -1)
+    st_arr = plugin_state(ref.JointState(z2=z2), other=0.0)
+    fm, _ = kernels.joint_forces(blk, st_arr, 0.0, w, 0.0, 0.0, 5e-4, hj, 0.0)
+    w1 = w + hj * fm
+    assert w1 * w >= -1e-12 * w * w and abs(w1) <= abs(w) * (1 + 1e-12)
+    f0, _ = kernels.joint_forces(blk, plugin_state(ref.JointState(z2=z2), other=0.0), 0.0, w, 0.0, 0.0, 5e-4, 0.0, 0.0)
+    assert close(-f0, twosep.twosep_force(0.0, z2, w, b), scale=abs(b * w * z2))
+
+
+@SETTINGS
+@given(w=velocity, p=statics())
+@example(w=0.0, p=StaticFriction())
+@example(w=-0.3, p=StaticFriction(asym=0.03, shape=2.0))
+def test_static_friction_slope(w, p):
+    args = (w, p.fc, p.fs, p.vs, p.shape, p.sigma, p.asym, p.v_eps, p.sigma_asym)
+    scale = (p.fc + p.fs) / p.v_eps + (p.fs + p.fc) / p.vs * 10 + p.sigma * 2 + 1e-12
+    # tanh's digits near 0 (smooth_sign is within 2.3e-16 of it, absolutely) are all a cusp term of a
+    # Stribeck shape below 1 sees: within (Fs - Fc) shape |w/Vs|^shape of the reference there.
+    cusp = abs(p.fs - p.fc) * p.shape * abs(w / p.vs) ** p.shape if p.shape < 1 else 0.0
+    assert abs(stribeck.static_friction_slope(*args) - ref.static_friction_slope(*args)) <= 1e-12 * scale + cusp
+
+
+@SETTINGS
 @given(delta=deflection, dd=finite(-5.0, 5.0), x=deflection, t=transmissions())
 @example(delta=0.0005, dd=1.0, x=0.001, t=Transmission(backlash=0.002))   # in the gap: nothing passes
 @example(delta=0.0025, dd=-1.0, x=0.001, t=Transmission(backlash=0.002))  # engaged
@@ -232,20 +249,39 @@ def joint_motion(draw) -> tuple[float, float, float, float]:
     return theta, draw(velocity), draw(deflection), draw(finite(-20.0, 20.0))
 
 
+def plugin_state(s: ref.JointState, at: float = np.nan, other: float = np.nan, other_t: float = np.nan) -> np.ndarray:
+    """The plugin's state slice: the physical states, their time, and the other torques on the
+    motor and on the deflection."""
+    out = np.zeros(NSTATE)
+    out[:AT] = s.as_list()
+    out[AT] = at
+    out[FO] = other
+    out[FOT] = other_t
+    return out
+
+
 @SETTINGS
-@given(p=joint_params(), s=joint_states(), m=joint_motion(), h=finite(1e-5, 2e-3), hj=finite(0.0, 100.0))
-@example(p=JointParams(), s=ref.JointState(), m=(0.0, 0.0, 0.0, 0.0), h=5e-4, hj=10.0)
+@given(p=joint_params(), s=joint_states(), m=joint_motion(), h=finite(1e-5, 2e-3), hj=finite(0.0, 100.0),
+       hjl=finite(0.0, 1.0), other=st.one_of(st.just(np.nan), finite(-5.0, 5.0)),
+       other_t=st.one_of(st.just(np.nan), finite(-500.0, 500.0)))
+@example(p=JointParams(), s=ref.JointState(), m=(0.0, 0.0, 0.0, 0.0), h=5e-4, hj=10.0, hjl=0.25, other=np.nan,
+         other_t=np.nan)
+@example(p=JointParams(), s=ref.JointState(x=0.002), m=(0.0, 50.0, 0.015, -2.0), h=5e-4, hj=10.0, hjl=0.25,
+         other=0.1, other_t=150.0)  # far past the rated deflection: the stiffness limit acts
 @example(p=JointParams(friction=StaticFriction(), ripple=TorqueRipple(),
                        transmission=Transmission(backlash=0.002)),
-         s=ref.JointState(x=0.001), m=(0.3, 2.0, 0.0005, -1.0), h=5e-4, hj=10.0)
-def test_joint_forces_and_advance(p, s, m, h, hj):
+         s=ref.JointState(x=0.001), m=(0.3, 2.0, 0.0005, -1.0), h=5e-4, hj=10.0, hjl=0.25, other=0.2,
+         other_t=np.nan)
+def test_joint_forces_and_advance(p, s, m, h, hj, hjl, other, other_t):
     theta, wq, delta, wtheta = m
     n = p.transmission.gear_ratio
     q = n * (theta + delta)
     blk = pack(p, 0, 0, 1, 1)
-    st_arr = np.array(s.as_list() + [np.nan])  # AT: fresh states
-    fm, fl = kernels.joint_forces(blk, st_arr, q, wq, theta, wtheta, hj)
-    rm, rl = ref.joint_forces(p, s, q, wq, theta, wtheta, hj)
+    st_arr = plugin_state(s, other=other, other_t=other_t)
+    fm, fl = kernels.joint_forces(blk, st_arr, q, wq, theta, wtheta, h, hj, hjl)
+    rm, rl = ref.joint_forces(p, s, q, wq, theta, wtheta, h, hj, hjl, other, other_t)
+    # the evaluation is recorded for the next step
+    assert st_arr[WP] == wq and st_arr[FP] == fm and st_arr[WPL] == wtheta and np.isfinite(st_arr[TP])
     t = p.transmission
     scale = t.k1 * 0.06 + t.k2 * 0.06 ** 2 + t.k3 * 0.06 ** 3 + 300.0
     # q/N - theta loses the bits of theta: relative to |theta| + |delta|, not to delta.
@@ -254,24 +290,39 @@ def test_joint_forces_and_advance(p, s, m, h, hj):
     kernels.joint_advance(blk, st_arr, q, wq, theta, wtheta, h)
     want = ref.joint_advance(p, s, q, wq, theta, wtheta, h).as_list()
     assert st_arr.shape == (NSTATE,)
-    assert all(close(g, r, 100.0 * (1 + abs(theta))) for g, r in zip(st_arr, want)), (list(st_arr), want)
+    assert all(close(g, r, 100.0 * (1 + abs(theta))) for g, r in zip(st_arr[:AT], want)), (list(st_arr), want)
 
 
 @SETTINGS
-@given(p=joint_params(), s=joint_states(), m=joint_motion(), h=finite(1e-5, 2e-3))
-def test_catch_up_advances_once_per_new_time(p, s, m, h):
+@given(p=joint_params(), s=joint_states(), m=joint_motion(), h=finite(1e-5, 2e-3), hj=finite(1e-3, 100.0),
+       hjl=finite(1e-3, 1.0))
+def test_catch_up_advances_once_per_new_time(p, s, m, h, hj, hjl):
     """compute's catch-up is the reference step exactly when time has moved since the states'
-    time, and nothing on a repeated evaluation or for fresh (NaN-stamped) states."""
+    time, and nothing on a repeated evaluation or for fresh (NaN-stamped) states. A step also
+    gives the other torques on the motor, J dw/h less the joint's torque at the last evaluation,
+    and on the deflection, J_rel d rate / h plus the transmission torque; fresh states leave
+    them unknown."""
     theta, wq, delta, wtheta = m
     q = p.transmission.gear_ratio * (theta + delta)
     blk = pack(p, 0, 0, 1, 1)
     want = ref.joint_advance(p, s, q, wq, theta, wtheta, h).as_list()
     for at, t, moved in ((0.0, h, True), (h, h, False), (np.nan, h, False)):
-        st_arr = np.array(s.as_list() + [at])
-        kernels.joint_catch_up(blk, st_arr, q, wq, theta, wtheta, t, h)
+        st_arr = plugin_state(s, at=at, other=0.3, other_t=7.0)
+        st_arr[WP], st_arr[FP], st_arr[WPL], st_arr[TP] = wq - 0.5, -0.1, wtheta + 0.2, 3.0
+        kernels.joint_catch_up(blk, st_arr, q, wq, theta, wtheta, t, h, hj, hjl)
         assert st_arr[AT] == t
+        n = p.transmission.gear_ratio
+        j_rel = h / (hj / n ** 2 + hjl)
+        if moved:
+            assert close(st_arr[FO], 0.5 / hj + 0.1, 1e-9 * (0.5 / hj + abs(wq) / hj))
+            want_t = j_rel * (0.5 / n + 0.2) / h + 3.0
+            assert close(st_arr[FOT], want_t, 1e-9 * (abs(want_t) + j_rel * (abs(wq) / n + abs(wtheta)) / h))
+        elif at == at:
+            assert st_arr[FO] == 0.3 and st_arr[FOT] == 7.0
+        else:
+            assert np.isnan(st_arr[FO]) and np.isnan(st_arr[FOT])
         again = st_arr.copy()
-        kernels.joint_catch_up(blk, again, q, wq, theta, wtheta, t, h)
+        kernels.joint_catch_up(blk, again, q, wq, theta, wtheta, t, h, hj, hjl)
         np.testing.assert_array_equal(again, st_arr)  # a second evaluation at t changes nothing
         expect = want if moved else s.as_list()
         assert all(close(g, r, 100.0 * (1 + abs(theta))) for g, r in zip(st_arr[:AT], expect)), \
@@ -297,14 +348,20 @@ def run_2sep(velocities, h, p=P, state=(0.0, 0.0, 0.0, 0.0, 0.0)):
 @pytest.mark.parametrize("p", [P, TwoSEP(asym=0.03, shape=2.0), TwoSEP(sigma=1e-3, sigma_asym=-0.5)],
                          ids=["default", "asym", "viscous asym"])
 def test_2sep_constant_velocity_converges_to_steady_state(w, p):
-    """F -> S(w) = s(w) + sigma w (Eq. 15) at any constant velocity, either sign."""
+    """F -> S(w) = s(w) + sigma w (Eq. 15) at any constant velocity, either sign, with the
+    lag's regularised sgn(w) (twosep.SIGN_WIDTH): S itself from ten widths on."""
     tau = ref.stribeck_level(w, p.fc, p.fs, p.vs, p.shape) / (p.b * abs(w))  # z2 lag time
     travel = 20.0 / p.k                                                     # z1 saturation
     duration = max(20.0 * tau, travel / abs(w))
     h = 5e-4
     _, f = run_2sep(np.full(max(int(duration / h), 200), w), h, p)
-    s = ref.steady_state(w, p.fc, p.fs, p.vs, p.shape, p.sigma, p.asym, p.sigma_asym)
-    assert f[-1] == pytest.approx(s, rel=1e-6)
+    args = (w, p.fc, p.fs, p.vs, p.shape, p.sigma, p.asym, p.sigma_asym)
+    # The lag only opposes the motion: below the saturated pre-sliding force, F stays there.
+    z1_sat = np.sign(w) * (p.fc + p.asym * np.sign(w))
+    target = ref.lag_target(*args)
+    assert f[-1] == pytest.approx(target if abs(target) > abs(z1_sat) else z1_sat, rel=1e-6)
+    if abs(w) >= 10 * twosep.SIGN_WIDTH * p.vs:
+        assert f[-1] == pytest.approx(ref.steady_state(*args), rel=1e-6)
 
 
 @pytest.mark.parametrize("direction", [1.0, -1.0])
@@ -350,7 +407,7 @@ def test_2sep_presliding_loop_closes(p):
     from the virgin curve the state settles onto the closed loop, each cycle contracting the
     difference (by exp(-4 K a) for B = 0; the z2 lag slows it for B > 0).
     """
-    amplitude, per, cycles = 1.0 / p.k, 2000, 12
+    amplitude, per, cycles = 1.0 / p.k, 2000, 16
     h = 2.0 / per
     path = amplitude * np.sin(2 * np.pi * np.arange(per * cycles + 1) / per)
     s, f = run_2sep_path(p, path, h)
@@ -512,7 +569,7 @@ def test_friction_history(w, h, p):
     for wi in w:
         s = list(ref.twosep_step(*s, wi, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym, p.sigma_asym))
         want.append(s)
-    got = kernels.friction_history(blk, np.asarray(w), h, np.array([0.01, 0.0, 0.0, 0.0, 0.0, 0.0, np.nan]))
+    got = kernels.friction_history(blk, np.asarray(w), h, plugin_state(ref.JointState(z1=0.01)))
     assert got.shape == (len(w), NSTATE)
     for g, r in zip(got, want):
         assert all(close(a, b, 100.0) for a, b in zip(g[:5], r)), (list(g), r)

@@ -70,11 +70,14 @@ def test_a_window_is_predicted_alike_whatever_windows_come_with_it(lab):
         np.testing.assert_array_equal(every[k][resting[::3]], some[k])
 
 
-def test_the_lead_in_recovers_the_lag_gain_and_predicts_held_out_windows_better(lab):
-    """Fitted from the truth with every parameter free: B within 10 % (along the measured
-    path's history, 1.27 of the truth on this recording), and the held-out cost lower."""
+def test_the_lag_gain_is_recovered_with_and_without_the_lead_in(lab):
+    """Fitted from the truth with every parameter free: B within 10 % whether the resting
+    windows' 2SEP states come from a lead-in or from the history along the measured path, and
+    the held-out costs alike: the lag's drive is continuous at rest, so no unresolved chatter
+    decides its windup."""
     truth, measured = lab
     fits = {lead: fit(Predictor(measured, WindowDesign(seed=0, lead=lead)), truth) for lead in (0.0, 1.0)}
-    b = fits[1.0].structure.values["dynamic_friction.b"] / truth.values["dynamic_friction.b"]
-    assert abs(b - 1) < 0.1, b
-    assert fits[1.0].cost_test < fits[0.0].cost_test
+    for lead, f in fits.items():
+        b = f.structure.values["dynamic_friction.b"] / truth.values["dynamic_friction.b"]
+        assert abs(b - 1) < 0.1, (lead, b)
+    assert fits[1.0].cost_test == pytest.approx(fits[0.0].cost_test, rel=0.02)

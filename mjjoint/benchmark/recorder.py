@@ -116,7 +116,8 @@ def record(arm: ArmSpec, joint: JointParams, program: LabProgram = LabProgram(),
         u = min(max(u, -controller.u_max), controller.u_max)
         st = data.plugin_state[adr:adr + NSTATE].copy()
         joint_catch_up(ji.block, st, data.qpos[ji.motor_qpos], data.qvel[ji.motor_dof],
-                       data.qpos[ji.link_qpos], data.qvel[ji.link_dof], data.time, model.opt.timestep)
+                       data.qpos[ji.link_qpos], data.qvel[ji.link_dof], data.time, model.opt.timestep,
+                       *ji.step_over_inertia(model))
         tau = transmitted(ji.block, st, data.qpos[ji.motor_qpos], data.qvel[ji.motor_dof],
                           data.qpos[ji.link_qpos], data.qvel[ji.link_dof])
         cols["t"][i], cols["u"][i], cols["q"][i], cols["theta"][i] = data.time, u, q, th

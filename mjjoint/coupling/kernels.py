@@ -13,29 +13,13 @@ from ..physics.boucwen import boucwen_step
 from ..physics.jit import kernel
 from ..physics.load import bearing_friction
 from ..physics.ripple import ripple_torque
-from ..physics.stribeck import static_friction
-from ..physics.transmission import engaged, transmission_torque
-from ..physics.twosep import twosep_force_implicit, twosep_step
-from .layout import (ASYM, AT, B, BACKLASH, BW_A, BW_BETA, BW_GAMMA, BW_N, DAMP, FC, FKIND,
-                     FRICTION_2SEP, FRICTION_STATIC, FS, GEAR, HYST, K, K1, K2, K3, L_FC,
-                     L_VEPS, L_VISC, LOAD, MU, OMEGA, QR, R_AMP, R_K, R_PHASE, RIPPLE,
-                     SHAPE, SIGMA, VASYM, VEPS, VS, WSIGN, X, Z1, Z2)
-
-
-@kernel
-def motor_friction(blk, st, w, hj):
-    """Friction torque opposing the motor (2SEP, static map or none).
-
-    ``hj`` = h / J, the step over the motor dof's apparent inertia: 2SEP's lag term is applied
-    linearly implicitly against it (``twosep.twosep_force_implicit``).
-    """
-    kind = blk[FKIND]
-    if kind == FRICTION_2SEP:
-        return twosep_force_implicit(st[Z1], st[Z2], w, blk[B], hj)
-    if kind == FRICTION_STATIC:
-        return static_friction(w, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM], blk[VEPS],
-                               blk[VASYM])
-    return 0.0
+from ..physics.stribeck import static_friction, static_friction_slope
+from ..physics.transmission import engaged, transmission_stiffness, transmission_torque
+from ..physics.twosep import twosep_step
+from .layout import (ASYM, AT, B, BACKLASH, BW_A, BW_BETA, BW_GAMMA, BW_N, DAMP, FC, FKIND, FO, FOT,
+                     FP, FRICTION_2SEP, FRICTION_STATIC, FS, GEAR, HYST, K, K1, K2, K3, L_FC, L_VEPS,
+                     L_VISC, LOAD, MU, OMEGA, QR, R_AMP, R_K, R_PHASE, RIPPLE, SHAPE, SIGMA, TP,
+                     VASYM, VEPS, VS, WP, WPL, WSIGN, X, Z1, Z2)
 
 
 @kernel
@@ -46,16 +30,116 @@ def transmitted(blk, st, q, wq, theta, wtheta):
                                blk[K1], blk[K2], blk[K3], blk[DAMP], blk[BACKLASH])
 
 
+# Largest k h^2 / J an explicit spring is given (omega h = sqrt(3); the stability check's margin).
+STABLE_KR = 3.0
+
+
 @kernel
-def joint_forces(blk, st, q, wq, theta, wtheta, hj):
-    """Generalised forces (motor, link) of the joint physics: -T/N - F + ripple, T - F_L."""
+def stiffness_limit(blk, st, t, q, wq, theta, wtheta, h, hjm, hjl):
+    """Torque that keeps the transmission spring stable at the step beyond its rated deflection.
+
+    An explicit spring of tangent stiffness k between inertias with h^2 / J_rel = r diverges
+    once k r > 4 (a hardening gear driven past its rated deflection). The stiffness above
+    k_lim = ``STABLE_KR`` / r is taken position-implicitly: (k - k_lim) h times the deflection
+    rate the step ends with, under the spring's torque ``t`` and the other torques on the
+    deflection that the last step implies (``st[FOT]``; unknown: those balancing ``t``). Stable
+    for any k, zero below the limit (ordinary runs are untouched), and zero as h -> 0, where
+    k_lim grows as 1/h^2.
+    """
+    if st[FOT] != st[FOT]:
+        st[FOT] = t
+    n = blk[GEAR]
+    r = h * (hjm / (n * n) + hjl)
+    de = engaged(q / n - theta, blk[BACKLASH])
+    if r <= 0.0 or (de == 0.0 and blk[BACKLASH] > 0.0):
+        return 0.0
+    a = blk[BW_A] if blk[HYST] != 0.0 else 1.0
+    excess = transmission_stiffness(de, st[X], blk[MU], blk[K1], blk[K2], blk[K3], a) - STABLE_KR / r
+    if excess <= 0.0:
+        return 0.0
+    # J_rel d(rate)/dt = other - T, and h / J_rel = r / h
+    return excess * h * ((wq / n - wtheta) + r / h * (st[FOT] - t)) / (1.0 + excess * r)
+
+
+@kernel
+def implicit_dof(f, g, other, hj):
+    """Velocity change over a step of one dof under the joint's force f + g dw, g = df/dw <= 0.
+
+    Semi-implicit Euler gives dw = hj (other + f + g dw) with the slope taken at the step's end
+    (backward Euler in the dof's own velocity), so a damper of any slope neither reverses nor
+    amplifies the motion, and a stiff one still balances the other forces (a friction that holds
+    the rotor in slow sliding against the drive). ``other``: the rest of the dof's forces, as the
+    last step implies them. ``hj`` = h/J, J the dof's apparent inertia.
+    """
+    return hj * (other + f) / (1.0 - g * hj)
+
+
+@kernel
+def known_other(st, f):
+    """The other torques on the motor dof, ``st[FO]``; where unknown (NaN: fresh states), those
+    that balance the joint's torque f without the 2SEP lag, recorded in their place: the motor
+    then keeps its velocity but for the lag damper, and a static map acts as written."""
+    if st[FO] != st[FO]:
+        st[FO] = -f
+    return st[FO]
+
+
+@kernel
+def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
+    """One evaluation of the joint at (q, wq, theta, wtheta) with states ``st``.
+
+    Returns (fm, fl, T, F, F_L): the generalised forces on the motor and link dofs, the
+    transmission torque as applied, and the motor and load friction as applied. The motor's
+    velocity-dependent torques (friction, the 2SEP lag damper, transmission damping) are taken
+    linearly implicitly against the motor dof's inertia, ``hj`` = h/J (``implicit_dof``); the
+    transmission spring is explicit up to its stability limit (``stiffness_limit``, ``hjl``: the
+    link dof's h/J); friction levels and the link side are explicit.
+    """
+    n = blk[GEAR]
     t = transmitted(blk, st, q, wq, theta, wtheta)
-    fm = -t / blk[GEAR] - motor_friction(blk, st, wq, hj)
+    t += stiffness_limit(blk, st, t, q, wq, theta, wtheta, h, hj, hjl)
+    d_eng = blk[DAMP] if (blk[BACKLASH] == 0.0 or engaged(q / n - theta, blk[BACKLASH]) != 0.0) else 0.0
+    # Motor: -T/N - F + ripple. 2SEP's z1 is a position state (no slope); its lag is a one-sided
+    # damper, decided on the velocity the step would reach without it.
+    kind = blk[FKIND]
+    f0 = 0.0
+    s0 = 0.0
+    if kind == FRICTION_STATIC:
+        f0 = static_friction(wq, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM], blk[VEPS], blk[VASYM])
+        s0 = max(0.0, static_friction_slope(wq, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM],
+                                            blk[VEPS], blk[VASYM]))
+    elif kind == FRICTION_2SEP:
+        f0 = st[Z1]
+    fm = -t / n - f0
     if blk[RIPPLE] != 0.0:
         fm += ripple_torque(q, blk[R_AMP], blk[R_K], blk[R_PHASE])
-    fl = t
-    if blk[LOAD] != 0.0:
-        fl -= bearing_friction(wtheta, blk[L_FC], blk[L_VISC], blk[L_VEPS])
+    gm = -d_eng / (n * n) - s0
+    om = known_other(st, fm)
+    dwm = implicit_dof(fm, gm, om, hj)
+    lag = 0.0
+    if kind == FRICTION_2SEP and st[Z2] * (wq + dwm) > 0.0:
+        c = blk[B] * abs(st[Z2])
+        dwm = implicit_dof(fm - c * wq, gm - c, om, hj)
+        lag = c * (wq + dwm)
+    fric = f0 + s0 * dwm + lag
+    fm = fm + gm * dwm - lag
+    # Link: T - F_L, explicit. Its velocity slopes are mild at the rated step, and the link dof's
+    # other forces (the flexible rod's unresolved modes) change too fast for last step's to hold.
+    load = bearing_friction(wtheta, blk[L_FC], blk[L_VISC], blk[L_VEPS]) if blk[LOAD] != 0.0 else 0.0
+    return fm, t - load, t, fric, load
+
+
+@kernel
+def joint_forces(blk, st, q, wq, theta, wtheta, h, hj, hjl):
+    """Generalised forces (motor, link) of the joint physics, -T/N - F + ripple and T - F_L, as
+    ``joint_evaluate`` applies them; records the velocities, the motor torque and the
+    transmission torque in ``st`` for the next step's estimates of the other torques on the
+    motor and on the deflection (``joint_catch_up``)."""
+    fm, fl, t, _, _ = joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl)
+    st[WP] = wq
+    st[FP] = fm
+    st[WPL] = wtheta
+    st[TP] = t
     return fm, fl
 
 
@@ -75,10 +159,14 @@ def joint_advance(blk, st, q, wq, theta, wtheta, h):
 
 
 @kernel
-def joint_catch_up(blk, st, q, wq, theta, wtheta, t, h):
+def joint_catch_up(blk, st, q, wq, theta, wtheta, t, h, hj, hjl):
     """Bring the states, last brought to ``st[AT]``, to time ``t``: the pending step's
     ``joint_advance`` if a step has passed since, none at the same time (a repeated
     mj_forward), none for fresh states (``st[AT]`` NaN: a reset, states set by hand).
+
+    A step also tells the other torques on the motor dof, its velocity change since the last
+    evaluation less what the joint applied then (J dw / h - f), and likewise those on the
+    deflection (J_rel d rate / h + T). Fresh states leave them unknown.
 
     The plugin does this at the start of compute rather than in a MuJoCo advance callback:
     same states, same forces, one callback a step instead of two (docs/design.md). So after
@@ -88,16 +176,23 @@ def joint_catch_up(blk, st, q, wq, theta, wtheta, t, h):
     at = st[AT]
     if at == at and at != t:
         joint_advance(blk, st, q, wq, theta, wtheta, h)
+        st[FO] = (wq - st[WP]) / hj - st[FP] if hj > 0.0 else 0.0
+        n = blk[GEAR]
+        r = h * (hj / (n * n) + hjl)
+        st[FOT] = ((wq - st[WP]) / n - (wtheta - st[WPL])) * h / r + st[TP] if r > 0.0 else 0.0
+    elif at != at:
+        st[FO] = np.nan
+        st[FOT] = np.nan
     st[AT] = t
 
 
 @kernel
-def settled_states(blk, states, t, q, wq, theta, wtheta, h):
+def settled_states(blk, states, t, q, wq, theta, wtheta, h, hj, hjl):
     """Copies of plugin-state rows (n, NSTATE) recorded at times ``t``, each caught up to its own
     time (``joint_catch_up``): the internal states at the recorded instants."""
     out = states.copy()
     for i in range(out.shape[0]):
-        joint_catch_up(blk, out[i], q[i], wq[i], theta[i], wtheta[i], t[i], h)
+        joint_catch_up(blk, out[i], q[i], wq[i], theta[i], wtheta[i], t[i], h, hj, hjl)
     return out
 
 
@@ -153,16 +248,13 @@ def hysteresis_history(blk, delta, x0):
 
 
 @kernel
-def joint_traces(blk, states, q, wq, theta, wtheta, hj):
-    """Transmission torque, motor friction and load friction along a trajectory (``hj``: as in
-    ``motor_friction``)."""
+def joint_traces(blk, states, q, wq, theta, wtheta, h, hj, hjl):
+    """Transmission torque, motor friction and load friction along a trajectory, as
+    ``joint_evaluate`` gives them from settled states."""
     n = q.shape[0]
     tau = np.empty(n)
     fric = np.empty(n)
     load = np.empty(n)
     for i in range(n):
-        st = states[i]
-        tau[i] = transmitted(blk, st, q[i], wq[i], theta[i], wtheta[i])
-        fric[i] = motor_friction(blk, st, wq[i], hj)
-        load[i] = bearing_friction(wtheta[i], blk[L_FC], blk[L_VISC], blk[L_VEPS]) if blk[LOAD] != 0.0 else 0.0
+        _, _, tau[i], fric[i], load[i] = joint_evaluate(blk, states[i], q[i], wq[i], theta[i], wtheta[i], h, hj, hjl)
     return tau, fric, load

@@ -25,9 +25,13 @@ BLOCK_LEN = 35
 FRICTION_NONE, FRICTION_STATIC, FRICTION_2SEP = 0.0, 1.0, 2.0
 
 # Plugin state indices: the 2SEP states (twosep.Z1 ... WSIGN), the Bouc-Wen x, then the time
-# the states hold at (NaN: at whatever time they are next evaluated; kernels.joint_catch_up).
-Z1, Z2, OMEGA, QR, WSIGN, X, AT = range(7)
-NSTATE = 7
+# the states hold at (NaN: at whatever time they are next evaluated; kernels.joint_catch_up),
+# then the integrator's memory: the motor's velocity and the joint's torque on it at the last
+# evaluation and the other torques on it that the step since implies (kernels.implicit_dof), the
+# link's velocity and the transmission torque at the last evaluation and the other torques on the
+# deflection (kernels.stiffness_limit). NaN: unknown, after a reset or for states set by hand.
+Z1, Z2, OMEGA, QR, WSIGN, X, AT, WP, FP, FO, WPL, TP, FOT = range(13)
+NSTATE = 13
 STATE_NAMES = ("z1", "z2", "omega", "q_r", "w_sign", "x")  # the physical ones, before AT
 
 

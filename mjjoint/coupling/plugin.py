@@ -205,10 +205,13 @@ def _compile_hot_callbacks(off: abi.Offsets):
             f64_ptr(field(d, d_frc))[0] = np.nan
             return
         blk, st, q, wq, th, wth = joint_state(m, d, instance, r)
-        joint_catch_up(blk, st, q, wq, th, wth, f64_at(d, d_time), f64_at(m, m_dt))
         md, ld = int(blk[MD]), int(blk[LD])
-        hj = f64_at(m, m_dt) * f64_ptr(field(m, m_invw))[md] if md >= 0 else 0.0
-        fm, fl = joint_forces(blk, st, q, wq, th, wth, hj)
+        h = f64_at(m, m_dt)
+        invw = f64_ptr(field(m, m_invw))
+        hj = h * invw[md] if md >= 0 else 0.0
+        hjl = h * invw[ld] if ld >= 0 else 0.0
+        joint_catch_up(blk, st, q, wq, th, wth, f64_at(d, d_time), h, hj, hjl)
+        fm, fl = joint_forces(blk, st, q, wq, th, wth, h, hj, hjl)
         frc = f64_ptr(field(d, d_frc))
         if md >= 0:
             frc[md] += fm

@@ -4,7 +4,7 @@ Friction is the object here, so the motor velocity is prescribed and the plugin'
 are stepped along it (``twosep_step`` advances the states over a step at velocity w,
 ``twosep_force`` gives F = z1 + B|w|z2), as the plugin's advance and compute do; with the
 velocity prescribed there is no inertia, so the lag force is the literal one (the plugin takes
-it implicitly against the motor's inertia, ``twosep_force_implicit``).
+it implicitly against the motor's inertia, ``coupling.kernels.joint_evaluate``).
 
 (a) the static map S(w) of Eqs. (14)-(15), discontinuous at w = 0;
 (b) the response to a cyclic velocity of increasing frequency: at each reversal the force

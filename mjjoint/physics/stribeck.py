@@ -52,6 +52,26 @@ def static_friction(w: float, fc: float, fs: float, vs: float, shape: float, sig
     return sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * (1.0 + sigma_asym * sg) * w
 
 
+@kernel
+def static_friction_slope(w: float, fc: float, fs: float, vs: float, shape: float, sigma: float,
+                          asym: float, v_eps: float, sigma_asym: float) -> float:
+    """dF/dw of ``static_friction``: what makes the map stiff near w = 0 (fc / v_eps there).
+
+    With d = tanh(w/v_eps) and E = exp(-|w/Vs|^shape) the map is
+    F = d (Fc + asym d + (Fs - Fc) E) + sigma (1 + sigma_asym d) w, so
+    F' = d' (Fc + 2 asym d + (Fs - Fc) E + sigma sigma_asym w) + d (Fs - Fc) E' + sigma (1 + sigma_asym d).
+    """
+    d = smooth_sign(w, v_eps)
+    r = abs(w / vs)
+    e = r if shape == 1.0 else (r * r if shape == 2.0 else r ** shape)
+    big_e = math.exp(-e) if e < 40.0 else 0.0
+    dd = (1.0 - d * d) / v_eps
+    # d E' = -|d| E shape r^(shape-1) / Vs: finite at w = 0 since |d| ~ |w| / v_eps there
+    de = abs(d) * big_e * shape * e / r / vs if r > 0.0 else 0.0
+    return (dd * (fc + 2.0 * asym * d + (fs - fc) * big_e + sigma * sigma_asym * w)
+            - (fs - fc) * de + sigma * (1.0 + sigma_asym * d))
+
+
 @dataclass(frozen=True)
 class StaticFriction:
     """Memoryless motor friction F(w) = sgn_eps(w)(Fc + (Fs-Fc) e^{-|w/Vs|^shape}) + sigma w.

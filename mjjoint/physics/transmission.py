@@ -35,6 +35,15 @@ def transmission_torque(delta, ddelta, x, mu, k1, k2, k3, damping, backlash):
     return restoring_torque(de, x, mu, k1, k2, k3) + damping * ddelta
 
 
+@kernel
+def transmission_stiffness(delta_e, x, mu, k1, k2, k3, a):
+    """An upper bound of dGamma/d delta (Eq. 16) at the engaged deflection ``delta_e`` and Bouc-Wen
+    state x: the elastic part's tangent plus the plastic part's with dx/d delta at its largest, A."""
+    elastic = k1 + 2.0 * k2 * abs(delta_e) + 3.0 * k3 * delta_e * delta_e
+    plastic = k1 + 2.0 * k2 * abs(x) + 3.0 * k3 * x * x
+    return mu * elastic + (1.0 - mu) * a * plastic
+
+
 @dataclass(frozen=True)
 class Transmission:
     """Gear ratio, stiffness polynomial, damping, backlash and optional Bouc-Wen hysteresis.

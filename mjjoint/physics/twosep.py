@@ -6,23 +6,35 @@
     z2' = (S(w) - F) / |S(w)|                            (14)
     S(w) = s(w) + sigma w,  s(w) Stribeck curve          (15)
 
-Integration over one step of length h (done once per MuJoCo step, in the plugin's advance):
-z1 is integrated *exactly* in the displacement domain, since (12) is w times a function of
-q_r alone: z1 += sgn(w)|Omega| (e^{-K|q_r|} - e^{-K|q_r + w h|}). z2 is stepped linearly
-implicitly, because the attraction rate B|w|/|S| becomes stiff at speed. |S(w)| in (14) is
-taken as the magnitude of the curve, |s| + sigma|w| >= Fc > 0, which equals |S(w)| for w != 0
-and avoids the division by zero the literal formula has at w = 0 (where B|w|z2 = 0 anyway).
+What the equations mean where the chapter is silent (each choice made once, here):
+- |S(w)| in (14) is the curve's magnitude, |s| + sigma|w| >= Fc > 0: the literal |S(0)| = 0
+  would divide by zero where B|w|z2 vanishes anyway.
+- The sgn(w) of S in (14) is regularised, tanh(w / (SIGN_WIDTH Vs)) (``lag_target``). With the
+  literal sign, z2's drive jumps between (Fs - z1)/Fs and (-Fs - z1)/Fs with every sign change of
+  w, so at rest the windup of z2 was decided by velocity chatter far below any encoder count
+  (and by the timestep that resolves it): the model had no converged solution in stick phases.
+  The regularised drive is continuous; at rest z2 follows -z1/|S|, the chatter's average.
+- Omega (13) is taken with F = z1, its value at the instant w crosses zero (evaluating F at
+  the new, non-zero velocity would let a velocity jump leak B|w|z2 into the pre-sliding memory).
+- The lag term B|w|z2 of (11) acts only while it opposes the motion (z2 w > 0). During slow
+  sliding z2's steady value (S - Fc)/(B|w|) grows as |w| falls, and right after a reversal the
+  literal term would push along the new motion, injecting energy (a free rotor gained ~10 J in
+  a kernel-only run). z2 itself evolves by (14) unchanged, so the frictional lag and its growth
+  with frequency (Fig. 8) are kept.
+Together these fix the friction at breakaway and in slow sliding: under a constant velocity F
+settles on S(w) from ten sign widths (0.5 rad/s for the defaults) on, and below that on
+max(|S_reg(w)|, Fc) (``TwoSEP.steady_friction``). At rest the lag winds up against the load,
+so a breakaway starts from the saturated pre-sliding force and the lag builds up towards S(w)
+as the rotor gains speed: a drive above Fs breaks the rotor free, at any timestep.
 
-Two readings keep the model passive. Omega (13) is taken with F = z1, its value at the instant
-w crosses zero (evaluating F at the new, non-zero velocity would let a velocity jump leak
-B|w|z2 into the pre-sliding memory). And the lag term B|w|z2 of (11) acts only while it
-opposes the motion (z2 w > 0): during slow sliding z2's steady value (S - Fc)/(B|w|) grows as
-|w| falls, and right after a reversal the literal term would push ALONG the new motion,
-injecting energy (a free rotor gained ~10 J in a kernel-only run). z2 itself evolves by (14)
-unchanged, so the frictional lag and its growth with frequency (Fig. 8) are kept: the lag-loop
-areas at 0.3-10 Hz differ from the literal form's by < 4 %. In MuJoCo the lag force is applied
-linearly implicitly (``twosep_force_implicit``): it is a damper of unbounded slope in slow
-sliding, which explicit integration turns into a limit cycle.
+Integration over one step of length h (once per MuJoCo step, at the start of the next):
+z1 is integrated exactly in the displacement domain, since (12) is w times a function of q_r
+alone: z1 += sgn(w)|Omega| (e^{-K|q_r|} - e^{-K|q_r + w h|}). (14) is linear in z2 for the
+step's w and z1, z2' = d - lam z2 with lam = B|w|/|S|, and is solved exactly over the step
+(stiff at speed, where 1/lam is far below h). In MuJoCo the lag force is a damper of slope
+B|z2| on the rotor, unbounded in slow sliding; the plugin applies it linearly implicitly with
+the rotor's other torques (``coupling.kernels.joint_evaluate``), so the pair is integrated
+consistently at any slope.
 """
 from __future__ import annotations
 
@@ -31,11 +43,10 @@ from dataclasses import dataclass
 
 from ..params import check
 from .jit import kernel
-from .stribeck import steady_state, stribeck_level  # noqa: F401 (steady_state: public API)
+from .stribeck import smooth_sign, steady_state, stribeck_level  # noqa: F401 (steady_state: public API)
 
-# Layout of the 2SEP state inside the plugin state vector.
-Z1, Z2, OMEGA, QR, WSIGN = range(5)
-NSTATE = 5
+# Width of the regularised sgn(w) in the lag state's drive (Eq. 14), in Stribeck velocities.
+SIGN_WIDTH = 0.1
 
 
 @kernel
@@ -45,21 +56,16 @@ def twosep_force(z1: float, z2: float, w: float, b: float) -> float:
 
 
 @kernel
-def twosep_force_implicit(z1: float, z2: float, w: float, b: float, hj: float) -> float:
-    """``twosep_force`` with the lag term taken linearly implicitly over a step h on an inertia J.
+def lag_target(w, fc, fs, vs, shape, sigma, asym, sigma_asym):
+    """(S, |S|): the steady state that drives the lag state (Eq. 14) and its magnitude.
 
-    While it acts, the lag term is a damper c w with c = B|z2|, and c grows without bound in slow
-    sliding (z2 -> (S - z1)/(B|w|)). Applied explicitly it destabilises the inertia once
-    c h / J > 2: a kicked free rotor kept a ~680 Hz dither (rms 0.06 rad/s at h = 0.5 ms,
-    c up to 0.47 N m s/rad against a limit of 0.2). Taken at the velocity the step ends with,
-    the damper of a backward-Euler step on J is c w / (1 + c h/J): stable for any c, and equal to
-    ``twosep_force`` as h/J -> 0. ``hj`` = h/J, J the dof's apparent inertia. The price: at the
-    step, slow sliding (c h/J >~ 1) reaches less than the lag's share of S(w).
+    S's sgn(w) is regularised over ``SIGN_WIDTH`` Stribeck velocities, so z2's drive is
+    continuous at w = 0; |S| is the curve's magnitude, >= Fc > 0 (the literal |S(0)| = 0).
     """
-    if z2 * w <= 0.0:
-        return z1
-    c = b * abs(z2)
-    return z1 + c * w / (1.0 + c * hj)
+    sg = 1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0)
+    level = stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape)
+    slope = sigma * (1.0 + sigma_asym * sg)
+    return smooth_sign(w, SIGN_WIDTH * vs) * level + slope * w, level + slope * abs(w)
 
 
 @kernel
@@ -77,11 +83,12 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
     # omega e^-40 = 4e-18 omega, under z1's last bit, so the two exp() are skipped (per step).
     if k * abs(qr) < 40.0:
         z1 = z1 + sg * omega * (math.exp(-k * abs(qr)) - math.exp(-k * abs(qr_new)))
-    level = stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape)
-    slope = sigma * (1.0 + sigma_asym * sg)
-    s_mag = level + slope * abs(w)
-    s = sg * level + slope * w  # = steady_state(w, ...), without evaluating the curve twice
-    z2 = (z2 + h * (s - z1) / s_mag) / (1.0 + h * b * abs(w) / s_mag)
+    s, s_mag = lag_target(w, fc, fs, vs, shape, sigma, asym, sigma_asym)
+    # Eq. 14 is linear in z2 for frozen w and z1: z2' = d - lam z2, solved exactly over the step.
+    lam_h = h * b * abs(w) / s_mag
+    decay = math.exp(-lam_h)
+    gain = h * (-math.expm1(-lam_h) / lam_h) if lam_h > 1e-12 else h
+    z2 = z2 * decay + gain * (s - z1) / s_mag
     return z1, z2, omega, qr_new, wsign
 
 
@@ -118,4 +125,14 @@ class TwoSEP:
         check("sigma_asym", self.sigma_asym, -1.0, 1.0, lo_open=True, hi_open=True)
 
     def steady_state(self, w: float) -> float:
+        """S(w) of Eqs. 14-15, the chapter's steady-state map."""
         return steady_state(w, self.fc, self.fs, self.vs, self.shape, self.sigma, self.asym, self.sigma_asym)
+
+    def steady_friction(self, w: float) -> float:
+        """The friction the model settles at under a constant velocity w: the lag's target where it
+        exceeds the saturated pre-sliding force sgn(w)(Fc + asym sgn w), that force elsewhere (the
+        lag only opposes the motion). S(w) itself from ten ``SIGN_WIDTH`` on."""
+        target, _ = lag_target(w, self.fc, self.fs, self.vs, self.shape, self.sigma, self.asym, self.sigma_asym)
+        sg = math.copysign(1.0, w) if w != 0 else 0.0
+        presliding = sg * (self.fc + self.asym * sg)
+        return target if abs(target) > abs(presliding) else presliding

@@ -1,0 +1,123 @@
+"""Does the simulated joint converge with the step? The shipped step against a 100x finer one.
+
+A real joint has no timestep: a simulation worth fitting to its recordings must give, at the
+shipped 0.5 ms, what the same model gives as h -> 0. Each case runs one model at h and at
+h / 100 under the same input, held at 1 kHz, and compares the motor speed and a torque by their
+relative rms difference; the order of convergence is read from h and h / 2.
+
+Cases: the shipped motor alone with its output cut free (a hinge drive: friction is all it
+meets), and the shipped arm (gear, hysteresis, flexible rod, gravity) under its down-chirp.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..assets import load_model
+from ..assets.builder import ArmSpec
+from ..assets.drive import DriveSpec, build_drive
+from ..excitation import Chirp
+from ..joint import JointParams
+from ..physics.stribeck import StaticFriction
+from ..physics.twosep import TwoSEP
+from ..sim import Simulator, Trace
+
+SHIPPED_STEP = 5e-4
+FINE = 100         # the reference step is the shipped one over this
+RATE = 1000.0      # input and sample rate [Hz]
+
+
+def rel_rms(a: np.ndarray, ref: np.ndarray) -> float:
+    """rms(a - ref) / rms(ref)."""
+    return float(np.sqrt(np.mean((a - ref) ** 2)) / np.sqrt(np.mean(ref ** 2)))
+
+
+def free_rotor(h: float, joint: JointParams, u: np.ndarray) -> Trace:
+    """The shipped motor (inertia, torque constant) with its output cut free, stepped at h."""
+    arm = ArmSpec()
+    drive = DriveSpec(joint_type="hinge", mass=arm.motor_inertia, k_m=arm.k_m, ctrl_limit=20.0,
+                      input_offset=0.0, timestep=h)
+    return Simulator(load_model(build_drive(drive, joint)), sample_rate=RATE).run(u)
+
+
+def shipped_arm(h: float, joint: JointParams, u: np.ndarray) -> Trace:
+    """The shipped single-joint arm with these joint physics, stepped at h."""
+    return Simulator(arm=ArmSpec(timestep=h), joint=joint, sample_rate=RATE).run(u)
+
+
+@dataclass(frozen=True)
+class Case:
+    """One model under one input: ``plant`` is ``free_rotor`` or ``shipped_arm``; ``torque`` the
+    trace compared besides the motor speed (``friction`` or ``tau``)."""
+
+    name: str
+    plant: object
+    joint: JointParams
+    u: np.ndarray
+    torque: str
+
+
+def cases() -> list[Case]:
+    t = np.arange(int(RATE)) / RATE
+    fs = TwoSEP().fs
+    sine = fs * np.sin(2 * np.pi * t)
+    chirp = Chirp().sample(RATE, 3.0)
+    return [
+        # 1.25 Fs: above break-away, the rotor must slide whatever the step
+        Case("free rotor, 2SEP, sine 1.25 Fs", free_rotor, JointParams(), 1.25 * sine, "friction"),
+        Case("free rotor, 2SEP, sine 2 Fs", free_rotor, JointParams(), 2.0 * sine, "friction"),
+        Case("free rotor, 2SEP, step 0.2 N m", free_rotor, JointParams(), np.where(t >= 0.1, 0.2, 0.0), "friction"),
+        Case("free rotor, 2SEP, 2 ms impulse", free_rotor, JointParams(),
+             np.where((t >= 0.1) & (t < 0.102), 1.25, 0.0), "friction"),
+        Case("free rotor, 2SEP without lag (B = 0), sine 1.25 Fs", free_rotor, JointParams(friction=TwoSEP(b=0.0)),
+             1.25 * sine, "friction"),
+        Case("free rotor, static map, sine 1.25 Fs", free_rotor, JointParams(friction=StaticFriction()),
+             1.25 * sine, "friction"),
+        Case("shipped arm, 2SEP, 3 s down-chirp", shipped_arm, JointParams(), chirp, "tau"),
+        Case("shipped arm, B = 0, 3 s down-chirp", shipped_arm, JointParams(friction=TwoSEP(b=0.0)), chirp, "tau"),
+        Case("shipped arm, static map, 3 s down-chirp", shipped_arm, JointParams(friction=StaticFriction()), chirp,
+             "tau"),
+    ]
+
+
+@dataclass(frozen=True)
+class Convergence:
+    """Relative rms differences from the 100x finer step, at h and at h / 2."""
+
+    speed: float
+    speed_half: float
+    torque: float
+    torque_half: float
+
+    @property
+    def order(self) -> float:
+        """Observed order of convergence of the torque, log2 of the error ratio of h and h / 2."""
+        return float(np.log2(self.torque / self.torque_half))
+
+
+def measure(case: Case, h: float = SHIPPED_STEP) -> Convergence:
+    ref = case.plant(h / FINE, case.joint, case.u)
+    runs = [case.plant(step, case.joint, case.u) for step in (h, h / 2)]
+    speed = [rel_rms(r.qd, ref.qd) for r in runs]
+    torque = [rel_rms(getattr(r, case.torque), getattr(ref, case.torque)) for r in runs]
+    return Convergence(speed[0], speed[1], torque[0], torque[1])
+
+
+def table() -> str:
+    """The markdown table of docs/design.md."""
+    rows = ["| case | motor speed | torque | observed order |", "|---|---|---|---|"]
+    for case in cases():
+        c = measure(case)
+        rows.append(f"| {case.name} | {100 * c.speed:.2g} % | {100 * c.torque:.2g} % ({case.torque}) | {c.order:.2g} |")
+    return "\n".join(rows)
+
+
+def write(out: str | Path) -> list[Path]:
+    path = Path(out) / "convergence.md"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = table()
+    path.write_text(text + "\n")
+    print(text)
+    return [path]
