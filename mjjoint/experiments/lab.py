@@ -14,7 +14,8 @@ flexible rod with 1 kg tip, gravity), driven open loop by the motor torque u = k
   spectrum (614-725 Hz around its 667 Hz zero) are masked (``signals.INPUT_FLOOR``).
   The fourth FRF, W/T after a shock on the load side, is ``load_shock``'s.
 * Down-chirp 30 -> 1 Hz (Figs. 12-13): motor velocity, transmission torque tau, and the
-  torsion-torque (delta, tau) hysteresis loops.
+  torsion-torque (delta, tau) hysteresis loops; actuator and transmission identified from
+  them by least squares (``identification``).
 * Gravity (Fig. 14 (a)): a low constant torque, 0.125 N m (0.5 A), 15 % above the
   m l g / N + Fc = 0.109 N m needed to pass the horizontal, drives the link slowly round
   (one turn in ~10 s; lower drives only creep over the horizontal); tau against theta over
@@ -40,7 +41,7 @@ from ..assets.builder import ArmSpec
 from ..excitation import Chirp, Impulse, Step
 from ..joint import GROUND, JointParams
 from ..sim import Simulator, Trace
-from . import plotting
+from . import identification, plotting
 from .load_shock import ShockData, shock_frf
 from .signals import impulse_frf, sampled_mass_line
 
@@ -250,9 +251,11 @@ def draw_step(data: StepData, path: str | Path) -> Path:
 
 
 def write(out: str | Path) -> list[Path]:
-    """Run the four lab experiments with the defaults and draw them into folder ``out``."""
+    """Run the lab experiments with the defaults and draw them into folder ``out``."""
     out = Path(out)
+    chirp = chirp_run()
     return [draw_frfs(impulse_frfs(), out / "lab_fig11_impulse_frfs.png"),
-            draw_chirp(chirp_run(), out / "lab_fig12_13_down_chirp.png"),
+            draw_chirp(chirp, out / "lab_fig12_13_down_chirp.png"),
+            identification.draw(identification.identify(chirp.trace), out / "lab_fig12_13_identification.png"),
             draw_gravity(gravity_sweep(), out / "lab_fig14a_gravity.png"),
             draw_step(step_run(), out / "lab_fig14b_step.png")]
