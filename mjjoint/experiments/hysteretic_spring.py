@@ -7,7 +7,7 @@
 
 The mass is the rotor of an ``mjjoint.joint`` with ``link_joint="world"``, so the plugin's
 transmission (gear ratio 1) is the spring to ground and delta = q. The hysteretic spring
-keeps the defaults' hardening polynomial (k1 = 1e4, k3 = 1e9) and x_u = 2 mrad, with
+has the default k1 = 1e4 with ten times the default hardening (k3 = 1e9), x_u = 2 mrad,
 mu = 0.1 and n = 2 (beta = gamma = 0.5 / x_u^2): with n = 2 the plastic loss of a cycle falls
 off as amplitude^4, so small oscillations are barely damped by the hysteresis, the
 "cancellation close to zero displacement" behind the chapter's limit cycle. The linear

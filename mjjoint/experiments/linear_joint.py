@@ -45,24 +45,40 @@ FIGURE = "fig2_rigid_vs_elastic.png"
 
 @dataclass(frozen=True)
 class LinearJoint:
-    """Masses [kg m^2] and dampings [N m s/rad] of Eqs. (2)-(3)."""
+    """Masses [kg m^2] and dampings [N m s/rad] of Eqs. (2)-(3).
+
+    ``c`` damps the spring itself (the transmission damping D of Eq. 18; Eq. 3 has none), so
+    that the linearised gear of Sec. 4, reflected to the link side, is this model too.
+    """
 
     m: float = 1.0
     M: float = 1.0
     d: float = 10.0
     D: float = 10.0
+    c: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("m", "M", "d", "D"):
             check(name, getattr(self, name), 0.0, lo_open=True)
+        check("c", self.c, 0.0)
+
+    def _denominator(self, K: float) -> np.ndarray:
+        spring = [self.c, K]
+        motor = np.polyadd([self.m, self.d, 0.0], spring)
+        link = np.polyadd([self.M, self.D, 0.0], spring)
+        return np.polysub(np.polymul(motor, link), np.polymul(spring, spring))
 
     def transfer(self, K: float | None) -> signal.TransferFunction:
         """theta(s)/U(s): Eq. (2) for K None, else Eq. (3)."""
-        m, M, d, D = self.m, self.M, self.d, self.D
         if K is None:
-            return signal.TransferFunction([1.0], [m + M, d + D, 0.0])
-        den = np.polysub(np.polymul([m, d, K], [M, D, K]), [K * K])
-        return signal.TransferFunction([K], den)
+            return signal.TransferFunction([1.0], [self.m + self.M, self.d + self.D, 0.0])
+        return signal.TransferFunction([self.c, K], self._denominator(K))
+
+    def motor_transfer(self, K: float, locked: bool = False) -> signal.TransferFunction:
+        """q(s)/U(s) of Eq. (3); ``locked``: theta held at 0 (the rotor on the spring alone)."""
+        if locked:
+            return signal.TransferFunction([1.0], [self.m, self.d + self.c, K])
+        return signal.TransferFunction([self.M, self.D + self.c, K], self._denominator(K))
 
 
 def timestep_for(K: float | None, joint: LinearJoint) -> float:

@@ -4,7 +4,7 @@ The spring is the object here, so the deflection is prescribed and the plugin's 
 are stepped along it: ``boucwen_step`` (Eq. 17, per deflection increment) and
 ``restoring_torque`` (Eq. 16). The path loads from rest to +a, then cycles -a -> +a; the
 loop of that closed cycle is measured. Stiffness polynomial and Bouc-Wen shape are the
-``Transmission``/``BoucWen`` defaults (k1 = 1e4, k3 = 1e9, hardening; x_u = 2 mrad), only mu
+``Transmission``/``BoucWen`` defaults (k1 = 1e4, k3 = 1e8, hardening; x_u = 2 mrad), only mu
 changes, and a = 3 x_u = 6 mrad takes x well into its plastic branch.
 
 Since x does not depend on mu, the loop area is (1 - mu) times that of the purely plastic
