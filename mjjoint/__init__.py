@@ -1,6 +1,12 @@
 """mjjoint: elastic robot joints in MuJoCo with 2SEP friction and Bouc-Wen hysteresis, and a
 diagnosis that names the physics a model is missing from a recording.
 
+Importing mjjoint registers the ``mjjoint.joint`` engine plugin with MuJoCo, so the shipped
+MJCF (``assets/mjcf``) loads and runs in plain MuJoCo too::
+
+    import mjjoint, mujoco
+    model = mujoco.MjModel.from_xml_path("assets/mjcf/arm3.xml")
+
 Three lines to a simulated recording::
 
     import mjjoint
@@ -21,6 +27,10 @@ from .physics.twosep import TwoSEP
 from .recordings import MultiRecording, Recording, RecordingError, read_recording, write_recording
 from .sim import Simulator, Trace, simulate
 from .viz import log_traces
+
+# MuJoCo's parser must know mjjoint.joint before any MJCF that declares it is read, whichever
+# API reads it (MjModel.from_xml_path, MjSpec.compile, ...): importing mjjoint is enough.
+register()
 
 __version__ = "0.1.0"
 

@@ -26,6 +26,9 @@ repeat re-runs all configurations in turn (interleaved, so cache and frequency d
 alike) and the best repeat counts.
 
     python scripts/bench_step.py --steps 20000 --repeats 7
+
+These are times; the deterministic per-step figure (instructions inside mj_step, the same
+states with and without the plugin) is scripts/bench_instructions.py.
 """
 from __future__ import annotations
 

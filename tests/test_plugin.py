@@ -114,25 +114,30 @@ def test_reset_and_keyframe_reset_clear_states(model):
     np.testing.assert_array_equal(a, b)
 
 
-def test_unregistered_model_fails_loudly_not_silently(model):
-    """A model copy never registered gives NaN (MuJoCo warns), never another model's physics."""
+def test_unregistered_model_is_registered_on_its_first_step(model):
+    """A model copy never registered (no mjData of its own) is parsed by compute on its first
+    step and runs its own parameters: the same trajectory as the registered model."""
     from mjjoint.coupling import registry
     twin = copy.copy(model)
     saved = registry.keys.copy()
+    data = mujoco.MjData(model)
+    x0 = np.empty(mujoco.mj_stateSize(model, FULL))
+    mujoco.mj_getState(model, data, x0, FULL)
+    ctrl = np.full((1, 50, 1), 0.3)
+    good, _ = rollout.rollout(model, data, x0[None], ctrl)
     try:
-        registry.keys[:] = 0  # forget every model, as if twin had never been seen
-        data = mujoco.MjData(model)  # init registers `model` again, not `twin`
-        x0 = np.empty(mujoco.mj_stateSize(model, FULL))
-        mujoco.mj_getState(model, data, x0, FULL)
-        state, _ = rollout.rollout(twin, data, x0[None], np.zeros((1, 5, 1)))
-        assert np.isnan(state).any() or data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
+        registry.keys[:] = 0  # forget every model, as if neither had ever been seen
+        state, _ = rollout.rollout(twin, data, x0[None], ctrl)
+        assert (registry.keys[:, registry.K_MODEL] == twin._address).sum() == 1
     finally:
         registry.keys[:] = saved
+    np.testing.assert_array_equal(state, good)
 
 
-def test_model_at_a_recycled_address_with_another_config_fails_loudly(model):
+def test_model_at_a_recycled_address_with_another_config_is_parsed_afresh(model):
     """Rows keyed by this model's address whose config bytes differ (a freed model's rows, the
-    address reused by a model never registered) are never used: NaN, not old parameters."""
+    address reused by a model never registered) are never used: compute parses the live config
+    into a new row, so the old parameters never run."""
     from mjjoint.coupling import registry
     data = mujoco.MjData(model)
     x0 = np.empty(mujoco.mj_stateSize(model, FULL))
@@ -142,15 +147,16 @@ def test_model_at_a_recycled_address_with_another_config_fails_loudly(model):
     assert np.isfinite(good).all()
     rows = np.flatnonzero(registry.keys[:, registry.K_MODEL] == model._address)
     assert rows.size > 0
-    saved = registry.configs.copy()
+    saved_keys, saved_configs, saved_params = registry.keys.copy(), registry.configs.copy(), registry.params.copy()
     try:
         registry.configs[rows, 0] ^= np.uint64(1)  # as if parsed from another config at this address
+        registry.params[rows] = np.nan  # ... with parameters that would show if they ran
         state, _ = rollout.rollout(model, data, x0[None], ctrl)
-        assert np.isnan(state).any() or data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
+        fresh = np.flatnonzero(registry.keys[:, registry.K_MODEL] == model._address)
+        assert set(fresh) > set(rows)  # a new row, from the live config
     finally:
-        registry.configs[:] = saved
-    again, _ = rollout.rollout(model, mujoco.MjData(model), x0[None], ctrl)
-    np.testing.assert_array_equal(again, good)
+        registry.keys[:], registry.configs[:], registry.params[:] = saved_keys, saved_configs, saved_params
+    np.testing.assert_array_equal(state, good)
 
 
 def test_extra_evaluations_between_steps_change_nothing(model):

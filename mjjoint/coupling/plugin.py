@@ -9,8 +9,12 @@ keyframes, ``copy.copy`` and multithreaded ``mujoco.rollout`` all carry them.
 Once per mjData, a Python ``init`` parses the instance's MJCF ``<config>`` with
 ``JointParams.from_config`` (the validation users get everywhere else), resolves the joint
 names, and stores the parameter block in the model-keyed ``registry``; ``plugin_data`` only
-caches the row. Doing this part in Python keeps the parsing and its error messages in one
-place; it never runs per step.
+caches the row. A model that reaches compute without a row (one of a ``mujoco.rollout`` batch
+that never had an mjData) is parsed the same way, from compute, on its first step. Doing this
+part in Python keeps the parsing and its error messages in one place; it never runs per step.
+
+``import mjjoint`` registers the plugin, so plain MuJoCo loads, steps and rolls out the
+shipped MJCF with no other mjjoint call.
 
 The callbacks read mjModel/mjData through offsets discovered at run time (``abi.offsets``),
 baked in as constants when they are compiled, once per process, at registration. The physics
@@ -102,9 +106,10 @@ def _attr_span(m_addr: int, instance: int) -> tuple[int, int]:
 def register_model(model_or_address, instance: int | None = None) -> list[int]:
     """Parse and store the parameters of a model's plugin instances; returns their rows.
 
-    Called automatically for every new mjData (plugin init) and by ``load_model``; call it
-    yourself for a model that is rolled out without ever having had an mjData of its own
-    (e.g. ``copy.copy(model)`` handed straight to ``mujoco.rollout``).
+    Called automatically for every new mjData (plugin init), by ``load_model``, and by compute
+    on the first step of a model that never had an mjData of its own (e.g. ``copy.copy(model)``
+    handed straight to ``mujoco.rollout``). Calling it up front moves that parse out of the
+    rollout and raises a config error as a ``ValueError`` here.
     """
     global _next_row
     if isinstance(model_or_address, int):
@@ -131,19 +136,37 @@ def register_model(model_or_address, instance: int | None = None) -> list[int]:
     return rows
 
 
-def _init(m_addr, d_addr, instance):
+_reported: set[tuple[int, int]] = set()  # (model, instance) whose config error was printed
+
+
+def _row_for(m_addr: int, d_addr: int, instance: int) -> int:
+    """Register one instance and cache its row in d->plugin_data; -1 (message on stderr) if
+    its config is invalid. Called from C: an exception cannot propagate."""
     try:
         (row,) = register_model(m_addr, instance)
     except Exception as exc:  # noqa: BLE001 - a C caller cannot take a Python exception
-        print(f"mjjoint: {exc}", file=sys.stderr)
+        if (m_addr, instance) not in _reported:  # compute retries every step: say it once
+            _reported.add((m_addr, instance))
+            print(f"mjjoint: plugin instance {instance}: {exc}", file=sys.stderr)
         return -1
     slots = abi._read_u64(d_addr + abi.offsets().d_plugin_data)
     ctypes.c_uint64.from_address(slots + 8 * instance).value = row
-    return 0
+    return row
 
 
-def _compile_hot_callbacks(off: abi.Offsets):
-    """numba cfuncs for nstate, reset and compute, with the offsets baked in."""
+def _init(m_addr, d_addr, instance):
+    return 0 if _row_for(m_addr, d_addr, instance) >= 0 else -1
+
+
+def _miss(m_addr, d_addr, instance):
+    """compute met a model instance with no parameter row (a model that never had an mjData
+    of its own, e.g. one of a ``mujoco.rollout`` batch): register it now."""
+    return _row_for(m_addr, d_addr, instance)
+
+
+def _compile_hot_callbacks(off: abi.Offsets, miss):
+    """numba cfuncs for nstate, reset and compute, with the offsets baked in; compute calls
+    ``miss`` (a ctypes callback) for a model instance it finds no parameter row for."""
     d_qpos, d_qvel, d_frc, d_time = off.d_qpos, off.d_qvel, off.d_qfrc_passive, off.d_time
     d_state, d_data = off.d_plugin_state, off.d_plugin_data
     m_stateadr, m_dt, m_invw = off.m_plugin_stateadr, off.m_timestep, off.m_dof_invweight0
@@ -201,7 +224,10 @@ def _compile_hot_callbacks(off: abi.Offsets):
     def compute(m, d, instance, capability):
         r = lookup(m, d, instance)
         if r < 0:
-            # Unregistered model: fail loudly (MuJoCo reports NaN in qacc) rather than guess.
+            r = miss(m, d, instance)  # first step of a model never registered: parse it now
+        if r < 0:
+            # Invalid config (the message is on stderr): fail loudly (MuJoCo reports NaN in
+            # qacc) rather than guess.
             f64_ptr(field(d, d_frc))[0] = np.nan
             return
         blk, st, q, wq, th, wth = joint_state(m, d, instance, r)
@@ -222,15 +248,18 @@ def _compile_hot_callbacks(off: abi.Offsets):
 
 
 _INIT = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
+_MISS = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int32)
 
 
 def register() -> None:
-    """Register ``mjjoint.joint`` with MuJoCo (idempotent; call before compiling a model)."""
+    """Register ``mjjoint.joint`` with MuJoCo (idempotent; ``import mjjoint`` calls it, so
+    plain ``mujoco.MjModel.from_xml_path`` and ``MjSpec.compile`` read the plugin's MJCF)."""
     with _lock:
         if PLUGIN_NAME in _registered:
             return
         off = abi.offsets()
-        nstate, reset, compute = _compile_hot_callbacks(off)
+        miss_cb = _MISS(_miss)
+        nstate, reset, compute = _compile_hot_callbacks(off, miss_cb)
         keys = config_keys()
         attrs = (ctypes.c_char_p * len(keys))(*[k.encode() for k in keys])
         plugin = abi.MjpPlugin()
@@ -250,4 +279,4 @@ def register() -> None:
         if slot < 0:
             raise RuntimeError(f"MuJoCo refused to register plugin {PLUGIN_NAME!r}")
         # MuJoCo keeps raw pointers to all of these: they must live as long as the process.
-        _registered[PLUGIN_NAME] = (plugin, attrs, keys, nstate, reset, compute, init_cb)
+        _registered[PLUGIN_NAME] = (plugin, attrs, keys, nstate, reset, compute, init_cb, miss_cb)
