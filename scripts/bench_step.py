@@ -9,9 +9,9 @@ One process, single thread. Each configuration is the shipped arm (build_arm def
   dcmotor   no plugin, MuJoCo's native <dcmotor> on the motor joint with LuGre friction and
             cogging (mujoco >= 3.17), sized like the plugin's defaults;
   callback  no plugin, the same physics from Python: mjcb_passive calls the numba kernels
-            (joint_forces) and the loop calls joint_advance after each mj_step, with the
-            internal states in a Python-held array: what the plugin replaces;
-  kernels   the plugin's physics alone (joint_forces + joint_advance in a compiled loop over
+            (joint_catch_up + joint_forces, as the plugin's compute), with the internal states
+            in a Python-held array: what the plugin replaces;
+  kernels   the plugin's physics alone (joint_catch_up + joint_forces in a compiled loop over
             the plugin run's own trajectory), no MuJoCo: the part of the overhead that is
             physics rather than mechanism, as a share of the bare step.
 Three timers: mujoco.rollout (single thread, outputs preallocated), a Python loop of mj_step
@@ -41,8 +41,8 @@ from mujoco import rollout
 from numba import njit
 
 from mjjoint.assets import ArmSpec, build_arm, load_model
-from mjjoint.coupling.kernels import joint_advance, joint_forces
-from mjjoint.coupling.layout import NSTATE, pack
+from mjjoint.coupling.kernels import joint_catch_up, joint_forces
+from mjjoint.coupling.layout import AT, NSTATE, pack
 from mjjoint.joint import JointParams
 from mjjoint.physics.ripple import TorqueRipple
 from mjjoint.physics.transmission import Transmission
@@ -164,11 +164,12 @@ class StepLoopTimer:
             self.lq, self.ld = int(link.qposadr[0]), int(link.dofadr[0])
             self.block = pack(JointParams(), self.mq, self.md, self.lq, self.ld)
             self.st = np.zeros(NSTATE)
-            self.hj = float(model.opt.timestep * model.dof_invweight0[self.md])
+            self.hj = tuple(float(model.opt.timestep * model.dof_invweight0[i]) for i in (self.md, self.ld))
 
     def passive(self, m, d) -> None:
-        fm, fl = joint_forces(self.block, self.st, d.qpos[self.mq], d.qvel[self.md], d.qpos[self.lq], d.qvel[self.ld],
-                              self.hj)
+        args = (self.block, self.st, d.qpos[self.mq], d.qvel[self.md], d.qpos[self.lq], d.qvel[self.ld])
+        joint_catch_up(*args, d.time, m.opt.timestep, *self.hj)
+        fm, fl = joint_forces(*args, m.opt.timestep, *self.hj)
         d.qfrc_passive[self.md] += fm
         d.qfrc_passive[self.ld] += fl
 
@@ -181,13 +182,12 @@ class StepLoopTimer:
                 mujoco.mj_step(m, d)
             return d.qpos.copy()
         self.st[:] = 0.0
-        h = m.opt.timestep
+        self.st[AT] = np.nan  # fresh, as after a reset
         mujoco.set_mjcb_passive(self.passive)
         try:
             for c in self.ctrl:
                 d.ctrl[:] = c
                 mujoco.mj_step(m, d)
-                joint_advance(self.block, self.st, d.qpos[self.mq], d.qvel[self.md], d.qpos[self.lq], d.qvel[self.ld], h)
         finally:
             mujoco.set_mjcb_passive(None)
         return d.qpos.copy()
@@ -199,11 +199,11 @@ class StepLoopTimer:
 
 
 @njit(cache=True)
-def _replay(blk, st, q, wq, theta, wtheta, hj, h):
+def _replay(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     acc = 0.0
     for i in range(q.shape[0]):
-        fm, fl = joint_forces(blk, st, q[i], wq[i], theta[i], wtheta[i], hj)
-        joint_advance(blk, st, q[i], wq[i], theta[i], wtheta[i], h)
+        joint_catch_up(blk, st, q[i], wq[i], theta[i], wtheta[i], i * h, h, hj, hjl)
+        fm, fl = joint_forces(blk, st, q[i], wq[i], theta[i], wtheta[i], h, hj, hjl)
         acc += fm + fl
     return acc
 
@@ -219,10 +219,11 @@ class KernelTimer:
         s = timer.state[0]
         self.args = (ji.block, np.zeros(NSTATE), s[:, 1 + ji.motor_qpos].copy(), s[:, 1 + nq + ji.motor_dof].copy(),
                      s[:, 1 + ji.link_qpos].copy(), s[:, 1 + nq + ji.link_dof].copy(),
-                     ji.step_over_inertia(model), model.opt.timestep)
+                     model.opt.timestep, *ji.step_over_inertia(model))
 
     def __call__(self) -> float:
         self.args[1][:] = 0.0
+        self.args[1][AT] = np.nan
         t = time.thread_time()
         _replay(*self.args)
         return time.thread_time() - t

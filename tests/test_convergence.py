@@ -7,7 +7,15 @@ import pytest
 from mjjoint.experiments.convergence import SHIPPED_STEP, Case, cases, measure, rel_rms
 
 CASES = {c.name: c for c in cases()}
-SLIDING = [name for name in CASES if name.startswith("free rotor") and "impulse" not in name]
+SLIDING = [name for name in CASES if name.startswith("free rotor") and name.endswith("1 Hz")]
+
+
+@pytest.mark.parametrize("name", [name for name, c in CASES.items() if not c.events])
+def test_every_case_converges_at_first_order(name):
+    """Semi-implicit Euler is first order: halving the step about halves the difference from
+    the 100x finer step (an ill-posed model, or a term stepped inconsistently, does not)."""
+    c = measure(CASES[name])
+    assert c.order > 0.6 and c.speed_half < c.speed, c
 
 
 @pytest.mark.parametrize("name", SLIDING)
@@ -23,16 +31,18 @@ def test_a_stopping_rotor_converges_at_first_order():
     assert c.order > 0.9 and c.speed_half < 0.6 * c.speed, c
 
 
-def test_shipped_chirp_is_well_posed_and_converges_with_the_step():
-    """Two fine steps agree; 0.1 ms is within 3 %; at 0.5 ms what is left (docs/design.md) is
-    breakaway instants shifted within stick phases."""
-    case: Case = CASES["shipped arm, 2SEP, 3 s down-chirp"]
+@pytest.mark.parametrize("name", [name for name, c in CASES.items() if c.events])
+def test_stick_slip_cases_are_well_posed_and_converge(name):
+    """Where sticking and breakaway instants dominate, the model still has one answer (two fine
+    steps agree) and the step approaches it: a fifth of the step, well under half the
+    difference. What is left at 0.5 ms is in docs/design.md."""
+    case: Case = CASES[name]
     ref = case.plant(SHIPPED_STEP / 200, case.joint, case.u)
     fine = case.plant(SHIPPED_STEP / 100, case.joint, case.u)
     assert rel_rms(fine.tau, ref.tau) < 0.01 and rel_rms(fine.qd, ref.qd) < 0.01
-    assert rel_rms(case.plant(SHIPPED_STEP / 5, case.joint, case.u).tau, ref.tau) < 0.03
-    shipped = case.plant(SHIPPED_STEP, case.joint, case.u)
-    assert rel_rms(shipped.tau, ref.tau) < 0.2 and rel_rms(shipped.qd, ref.qd) < 0.1
+    coarse, finer = (case.plant(h, case.joint, case.u) for h in (SHIPPED_STEP, SHIPPED_STEP / 5))
+    assert rel_rms(finer.tau, ref.tau) < 0.4 * rel_rms(coarse.tau, ref.tau)
+    assert rel_rms(finer.qd, ref.qd) < 0.4 * rel_rms(coarse.qd, ref.qd)
 
 
 @pytest.mark.parametrize("name", ["shipped arm, B = 0, 3 s down-chirp", "shipped arm, static map, 3 s down-chirp"])

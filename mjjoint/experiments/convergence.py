@@ -18,9 +18,10 @@ import numpy as np
 from ..assets import load_model
 from ..assets.builder import ArmSpec
 from ..assets.drive import DriveSpec, build_drive
-from ..excitation import Chirp
-from ..joint import JointParams
+from ..excitation import Chirp, Impulse
+from ..joint import GROUND, JointParams
 from ..physics.stribeck import StaticFriction
+from ..physics.transmission import Transmission
 from ..physics.twosep import TwoSEP
 from ..sim import Simulator, Trace
 
@@ -50,32 +51,49 @@ def shipped_arm(h: float, joint: JointParams, u: np.ndarray) -> Trace:
 @dataclass(frozen=True)
 class Case:
     """One model under one input: ``plant`` is ``free_rotor`` or ``shipped_arm``; ``torque`` the
-    trace compared besides the motor speed (``friction`` or ``tau``)."""
+    trace compared besides the motor speed (``friction`` or ``tau``). ``events``: the difference
+    is dominated by the instants the motor sticks or breaks free, each a step early or late, so
+    its decrease with h is irregular."""
 
     name: str
     plant: object
     joint: JointParams
     u: np.ndarray
     torque: str
+    events: bool = False
 
 
 def cases() -> list[Case]:
     t = np.arange(int(RATE)) / RATE
     fs = TwoSEP().fs
-    sine = fs * np.sin(2 * np.pi * t)
+    sine = fs * np.sin(2 * np.pi * t)      # 1 Hz
+    sine2 = fs * np.sin(4 * np.pi * t)     # 2 Hz
     chirp = Chirp().sample(RATE, 3.0)
+    step = np.where(t >= 0.1, 0.1, 0.0)
+    impulse = Impulse().sample(RATE, 1.0)
+    locked = JointParams(link_joint=GROUND)
     return [
         # 1.25 Fs: above break-away, the rotor must slide whatever the step
-        Case("free rotor, 2SEP, sine 1.25 Fs", free_rotor, JointParams(), 1.25 * sine, "friction"),
-        Case("free rotor, 2SEP, sine 2 Fs", free_rotor, JointParams(), 2.0 * sine, "friction"),
+        Case("free rotor, 2SEP, sine 1.25 Fs, 1 Hz", free_rotor, JointParams(), 1.25 * sine, "friction"),
+        Case("free rotor, 2SEP, sine 2 Fs, 1 Hz", free_rotor, JointParams(), 2.0 * sine, "friction"),
+        Case("free rotor, 2SEP, sine 1.25 Fs, 2 Hz", free_rotor, JointParams(), 1.25 * sine2, "friction"),
         Case("free rotor, 2SEP, step 0.2 N m", free_rotor, JointParams(), np.where(t >= 0.1, 0.2, 0.0), "friction"),
         Case("free rotor, 2SEP, 2 ms impulse", free_rotor, JointParams(),
              np.where((t >= 0.1) & (t < 0.102), 1.25, 0.0), "friction"),
-        Case("free rotor, 2SEP without lag (B = 0), sine 1.25 Fs", free_rotor, JointParams(friction=TwoSEP(b=0.0)),
+        Case("free rotor, 2SEP without lag (B = 0), sine 1.25 Fs, 1 Hz", free_rotor,
+             JointParams(friction=TwoSEP(b=0.0)), 1.25 * sine, "friction"),
+        Case("free rotor, static map, sine 1.25 Fs, 1 Hz", free_rotor, JointParams(friction=StaticFriction()),
              1.25 * sine, "friction"),
-        Case("free rotor, static map, sine 1.25 Fs", free_rotor, JointParams(friction=StaticFriction()),
-             1.25 * sine, "friction"),
-        Case("shipped arm, 2SEP, 3 s down-chirp", shipped_arm, JointParams(), chirp, "tau"),
+        Case("locked output, sine 1.25 Fs, 2 Hz", shipped_arm, locked, 1.25 * sine2, "tau"),
+        Case("locked output, step 0.1 N m", shipped_arm, locked, step, "tau"),
+        Case("locked output, 1.5 ms impulse (Sec. 4)", shipped_arm, locked, impulse, "tau", events=True),
+        Case("shipped arm, Bouc-Wen gear alone, sine, 2 Hz", shipped_arm,
+             JointParams(friction=None, load_friction=None), 0.4 * sine2, "tau"),
+        Case("shipped arm, 0.3 mrad backlash, sine 1.25 Fs, 2 Hz", shipped_arm,
+             JointParams(transmission=Transmission(backlash=3e-4)), 1.25 * sine2, "tau"),
+        Case("shipped arm, step 0.1 N m", shipped_arm, JointParams(), step, "tau"),
+        Case("shipped arm, 1.5 ms impulse (Sec. 4)", shipped_arm, JointParams(), impulse, "tau"),
+        Case("shipped arm, 2SEP, 3 s down-chirp", shipped_arm, JointParams(), chirp, "tau", events=True),
         Case("shipped arm, B = 0, 3 s down-chirp", shipped_arm, JointParams(friction=TwoSEP(b=0.0)), chirp, "tau"),
         Case("shipped arm, static map, 3 s down-chirp", shipped_arm, JointParams(friction=StaticFriction()), chirp,
              "tau"),

@@ -85,9 +85,16 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
         z1 = z1 + sg * omega * (math.exp(-k * abs(qr)) - math.exp(-k * abs(qr_new)))
     s, s_mag = lag_target(w, fc, fs, vs, shape, sigma, asym, sigma_asym)
     # Eq. 14 is linear in z2 for frozen w and z1: z2' = d - lam z2, solved exactly over the step.
+    # The gain (1 - e^-lam_h) h / lam_h from the one exp; its series where that loses digits, and
+    # no exp at all where e^-lam_h is below z2's last bit (fast sliding).
     lam_h = h * b * abs(w) / s_mag
-    decay = math.exp(-lam_h)
-    gain = h * (-math.expm1(-lam_h) / lam_h) if lam_h > 1e-12 else h
+    if lam_h > 40.0:
+        decay, gain = 0.0, h / lam_h
+    elif lam_h > 1e-4:
+        decay = math.exp(-lam_h)
+        gain = h * (1.0 - decay) / lam_h
+    else:
+        decay, gain = 1.0 - lam_h * (1.0 - 0.5 * lam_h), h * (1.0 - lam_h * (0.5 - lam_h / 6.0))
     z2 = z2 * decay + gain * (s - z1) / s_mag
     return z1, z2, omega, qr_new, wsign
 
