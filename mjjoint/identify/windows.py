@@ -373,17 +373,13 @@ class Predictor:
         """Full MuJoCo states at the starts of ``windows``; for 2SEP, those that start at rest take
         2SEP's states from a lead-in.
 
-        At rest a motor chatters far below one encoder count (20 s concealed cases: ~80 sign
-        changes a second, 1e-8 rad each). Every sign change switches the drive of 2SEP's lag
-        state z2 (Eq. 14), so z2 winds up over a dwell, and a breakaway releases it as a damper
-        of slope B|z2|. No sensor resolves that chatter, and the history along the measured angle
-        (constant at rest) winds z2 up differently: -0.44 against the truth's -0.31 before a
-        breakaway, which a fit made up by scaling B to 0.71 of the truth. The model itself,
-        simulated under the measured input from the last sample where the motor still moved
-        (``lead_samples``), reproduces the truth's z1 and z2 at 9 of 10 such starts to 1 %
-        (docs/benchmark.md, fourteenth look). Only the 2SEP states are taken: the window still
-        starts from the measured motion, and Bouc-Wen's x follows the path anyway. The lead-ins
-        cost up to ``design.lead`` of simulation per resting window.
+        At a resting start the 2SEP states hold what the measured angle does not: pre-sliding
+        below one encoder count and the lag state's windup over the dwell (Eq. 14 keeps
+        integrating at rest). The model itself, simulated under the measured input from the last
+        sample where the motor still moved (``lead_samples``), supplies them. Only the 2SEP
+        states are taken: the window still starts from the measured motion, and Bouc-Wen's x
+        follows the path anyway. The lead-ins cost up to ``design.lead`` of simulation per
+        resting window.
         """
         i0 = self.starts[windows]
         lead = self.lead_samples[windows] if ji.block[FKIND] == FRICTION_2SEP else np.zeros(len(i0), int)
