@@ -1,14 +1,19 @@
 """``mjjoint simulate``: outputs, excitation options, model files, one-line errors, chunking."""
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from mjjoint.assets import ArmSpec
+import mjjoint.cli.memory as memory
+import mjjoint.viz.rerun_log as rerun_log
 from mjjoint.cli import main
 from mjjoint.cli.chunked import rollout_chunked
 from mjjoint.excitation import Chirp, Step
@@ -113,6 +118,11 @@ BAD_ARGS = [
     (lambda p: ["simulate", "--duration", "0"], "duration=0"),
     (lambda p: ["simulate", "--csv", str(p)], "is a directory"),
     (lambda p: ["simulate", "--csv", str(p / "file.txt" / "x.csv")], "file.txt"),
+    # outside the working directory an output's folder must exist (nothing made at the root)
+    (lambda p: ["simulate", "--csv", str(p / "missing" / "x.csv")], "missing does not exist"),
+    (lambda p: ["simulate", "--plot", str(p / "missing" / "x.png")], "--plot"),
+    (lambda p: ["simulate", "--rrd", str(p / "missing" / "x.rrd")], "--rrd"),
+    (lambda p: ["simulate", "--out", str(p / "missing" / "sim")], "--out"),
     (lambda p: ["simulate", "--rate", "3000", "--csv", str(p / "x.csv")], "sample_rate=3000"),
     # a flexible rod far too stiff for the step: MuJoCo's own joint springs diverge
     (lambda p: ["simulate", "--model", str(_written(p / "stiff.toml", "[arm]\nrod_ei = 1e7\n")), "--duration", "0.5",
@@ -123,14 +133,92 @@ BAD_ARGS = [
 
 
 @pytest.mark.parametrize("make_args, message", BAD_ARGS, ids=[m for _, m in BAD_ARGS])
-def test_user_errors_exit_2_with_one_line(tmp_path, capsys, make_args, message):
+def test_user_errors_exit_2_with_one_line(tmp_path, capsys, monkeypatch, make_args, message):
     (tmp_path / "file.txt").write_text("not a directory")
+    (tmp_path / "cwd").mkdir()
+    monkeypatch.chdir(tmp_path / "cwd")  # tmp_path is outside the working directory
     rc = main(make_args(tmp_path))
     err = capsys.readouterr().err
     assert rc == 2
+    assert_one_error_line(err, message)
+    assert not (tmp_path / "missing").exists()
+
+
+def assert_one_error_line(err: str, message: str) -> None:
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
     assert lines[0].startswith("mjjoint: error: ") and message in lines[0]
+
+
+def test_missing_folders_are_created_inside_the_working_directory(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "--duration", "0.1", "--csv", "a/b/x.csv", "--rrd", str(tmp_path / "c" / "x.rrd")]) == 0
+    assert (tmp_path / "a" / "b" / "x.csv").is_file() and (tmp_path / "c" / "x.rrd").is_file()
+
+
+def final_outputs(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir()) if folder.exists() else []
+
+
+def test_an_interrupt_while_writing_leaves_only_the_previous_complete_outputs(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "out" / "simulate"
+
+    def interrupted(*args, **kwargs):  # Ctrl-C after the CSV and the plot are written
+        assert any(".partial-" in name for name in final_outputs(out))
+        raise KeyboardInterrupt
+    real = rerun_log.log_traces
+    monkeypatch.setattr(rerun_log, "log_traces", interrupted)
+    assert main(["simulate", "--duration", "0.2"]) == 130
+    assert final_outputs(out) == []  # no trace.csv of full size, no partial names
+
+    monkeypatch.setattr(rerun_log, "log_traces", real)
+    assert main(["simulate", "--duration", "0.2"]) == 0
+    first = {name: (out / name).read_bytes() for name in final_outputs(out)}
+    assert sorted(first) == ["trace.csv", "trace.png", "trace.rrd"]
+    monkeypatch.setattr(rerun_log, "log_traces", interrupted)
+    assert main(["simulate", "--duration", "0.3"]) == 130
+    assert {name: (out / name).read_bytes() for name in final_outputs(out)} == first
+    assert "mjjoint: interrupted" in capsys.readouterr().err
+
+
+def test_sigint_to_a_running_simulate_leaves_no_output(tmp_path):
+    """The real Ctrl-C: SIGINT once the first partial file exists."""
+    out = tmp_path / "out" / "simulate"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    proc = subprocess.Popen([sys.executable, "-m", "mjjoint", "simulate"], cwd=tmp_path,
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while proc.poll() is None and time.monotonic() < deadline:
+        if any(".partial-" in name for name in final_outputs(out)):
+            break
+        time.sleep(0.005)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1] == "mjjoint: interrupted"
+    assert final_outputs(out) == []
+
+
+def test_a_run_that_would_not_fit_in_memory_is_refused_before_it_starts(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(memory, "available_bytes", lambda: 24e9)  # the 24 GB machine of the report
+    csv = tmp_path / "x.csv"
+    start = time.perf_counter()
+    assert main(["simulate", "--duration", "1e6", "--csv", str(csv)]) == 2
+    assert time.perf_counter() - start < 5  # refused up front, not after allocating 8 GB of input
+    err = capsys.readouterr().err
+    assert_one_error_line(err, "--duration 1e+06 s at --rate 1000 Hz")
+    assert "GB of memory but 24 GB is available" in err and not csv.exists()
+    # The estimate scales with the run: 10 s at 1 kHz needs about 16 MB.
+    monkeypatch.setattr(memory, "available_bytes", lambda: 10e6)
+    assert main(["simulate", "--duration", "10", "--csv", str(csv)]) == 2
+    monkeypatch.setattr(memory, "available_bytes", lambda: 30e6)
+    assert main(["simulate", "--duration", "10", "--csv", str(csv)]) == 0
+
+
+def test_available_memory_is_known_on_linux():
+    have = memory.available_bytes()
+    assert have is not None and have > 0
 
 
 def test_help_exits_0(capsys):

@@ -241,7 +241,8 @@ def test_columns_scales_and_torque_constant_reach_the_fit(files, fit_run, tmp_pa
     (["{rec}", "--gear-ratio", "160", "--window-length", "2"], "too short"),
     (["{rec}", "--gear-ratio", "160", "--lead-in", "-1"], "--lead-in -1 must lie in [0, 60] s"),
 ])
-def test_bad_inputs_fail_in_one_line_with_exit_2(files, tmp_path, capsys, argv, message):
+def test_bad_inputs_fail_in_one_line_with_exit_2(files, tmp_path, capsys, monkeypatch, argv, message):
+    monkeypatch.chdir(tmp_path)  # missing folders of --out may be created here
     backwards = tmp_path / "backwards.csv"
     backwards.write_text("t,u,q,theta\n" + "".join(f"{0.001 * (20 - i)},0,0,0\n" for i in range(20)))
     names = {"missing": tmp_path / "nope.csv", "rec": files["delayed"], "backwards": backwards, "model": files["model"]}
@@ -258,6 +259,18 @@ def test_help_lists_the_effects_and_exits_0(command, capsys):
     assert main([command, "--help"]) == 0
     text = capsys.readouterr().out
     assert "--gear-ratio" in text and "input_delay" in text and "examples:" in text
+
+
+@pytest.mark.parametrize("command", ["fit", "diagnose"])
+def test_an_out_folder_in_a_missing_folder_outside_the_working_directory_is_refused(
+        command, files, tmp_path, capsys, monkeypatch):
+    (tmp_path / "cwd").mkdir()
+    monkeypatch.chdir(tmp_path / "cwd")
+    out = tmp_path / "missing" / "out"
+    assert main([command, str(files["delayed"]), "--gear-ratio", "160", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"mjjoint: error: --out {out}: folder ")
+    assert "does not exist" in err and not (tmp_path / "missing").exists()
 
 
 def test_a_foreign_output_folder_is_refused_before_any_work(files, tmp_path, capsys):

@@ -236,7 +236,8 @@ def test_the_other_joints_motion_loads_a_joint_at_first_order_only_with_parallel
     (["{csv}", "--gear-ratio", "160", "--joint", "0"], "joints are numbered from 1"),
     (["{single}", "--gear-ratio", "160", "--joint", "1"], "holds one joint"),
 ])
-def test_bad_joint_options_fail_in_one_line_with_exit_2(files, tmp_path, capsys, argv, message):
+def test_bad_joint_options_fail_in_one_line_with_exit_2(files, tmp_path, capsys, monkeypatch, argv, message):
+    monkeypatch.chdir(tmp_path)  # missing folders of --out may be created here
     single = tmp_path / "single.csv"
     single.write_text("t,u,q,theta\n" + "".join(f"{0.001 * i},0,0,0\n" for i in range(20)))
     names = {"model": files["model"], "csv": files["csv"], "single": single}

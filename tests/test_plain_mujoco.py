@@ -82,6 +82,13 @@ print(json.dumps({
 """
 
 
+@pytest.fixture(autouse=True)
+def _in_tmp_cwd(tmp_path, monkeypatch):
+    """The scripts run in a temporary folder: MuJoCo writes its warnings (the invalid config's
+    NaN rollout) to MUJOCO_LOG.TXT in the working directory, which must not be the tree."""
+    monkeypatch.chdir(tmp_path)
+
+
 def _run(code: str, *args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=300)
 

@@ -322,6 +322,11 @@ BAD_CSV: dict[str, tuple[str | bytes, list[str]]] = {
     "huge tau": (csv_text(HEADER, rows_with(2, 4, 2e6)), ["'tau'"]),
     "gap in time": (csv_text(HEADER, time_rows([0.001 * i for i in range(10)] + [0.1 + 0.001 * i for i in range(10)])), ["gap in time", "sample 10", "t=0.009"]),
     "time in milliseconds": (csv_text(HEADER, time_rows([2.0 * i for i in range(12)])), ["sample period 2 s", "seconds"]),
+    # 1 kHz with t in ms reads as 1 Hz for 11 s (10 000 s for a 10 s recording)
+    "time in milliseconds at 1 kHz": (csv_text(HEADER, time_rows([1.0 * i for i in range(12)])),
+                                      ["t looks like milliseconds", "1000 Hz over 0.011 s", "--scales t=0.001"]),
+    "time in microseconds": (csv_text(HEADER, time_rows([500.0 * i for i in range(12)])),
+                             ["t looks like microseconds", "2000 Hz", "--scales t=1e-06"]),
     "time in nanoseconds": (csv_text(HEADER, time_rows([1e-9 * i for i in range(12)])), ["sample period 1e-09 s"]),
     "unknown column": (csv_text(HEADER + ",foo", [r + [1] for r in valid_rows()]), ["unknown column(s) 'foo'", "allowed: t, u, q, theta, tau"]),
     "duplicated column": (csv_text("t,u,q,theta,q", valid_rows()), ["duplicated column name(s) 'q'"]),
@@ -332,6 +337,13 @@ BAD_CSV: dict[str, tuple[str | bytes, list[str]]] = {
     "not utf-8": (csv_text(HEADER, valid_rows()).encode() + b"\xff\xfe\n", ["not UTF-8"]),
     "nul byte": (csv_text(HEADER, valid_rows()).encode() + b"1,\x00\n", ["line 22"]),
 }
+
+
+def test_time_in_milliseconds_reads_with_the_scale_the_message_names(tmp_path: Path) -> None:
+    path = tmp_path / "ms.csv"
+    path.write_text(csv_text(HEADER, time_rows([1.0 * i for i in range(12)])))
+    rec = read_recording(path, scales={"t": 1e-3})
+    assert np.allclose(np.diff(rec.t), 1e-3)
 
 
 @pytest.mark.parametrize("case", list(BAD_CSV))

@@ -12,6 +12,8 @@ import os
 import sys
 from collections.abc import Callable
 
+from .. import interrupts
+
 PROG = "mjjoint"
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
@@ -37,9 +39,16 @@ def describe(exc: BaseException) -> str:
 
 
 def guarded(command: Callable[[], int]) -> int:
-    """Run ``command``; a user error is printed as one line and gives exit code 2."""
+    """Run ``command``; a user error is printed as one line and gives exit code 2.
+
+    An interrupt gives exit code 130, also one that Python could only print (``interrupts``).
+    """
+    start = interrupts.count()
     try:
-        return command()
+        with interrupts.counted():
+            code = command()
+        interrupts.raise_if_interrupted(start)
+        return code
     except SystemExit as exc:  # argparse's --help
         return exc.code if isinstance(exc.code, int) else 0 if exc.code is None else 1
     except (ValueError, OSError) as exc:

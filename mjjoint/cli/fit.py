@@ -22,6 +22,7 @@ from ..identify.windows import MAX_LEAD, Measured, Predictor, WindowDesign
 from ..joint import JointParams
 from ..modelfile import ModelFile
 from ..physics.twosep import TwoSEP
+from ..report.output import DESTINATION_RULE
 from ..recordings import Recording, parse_column_map, parse_scales, read_recording
 from .errors import CliError
 
@@ -99,7 +100,7 @@ def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
                         f"states (default {WindowDesign.lead:g} s; 0: none)")
     w.add_argument("--seed", type=int, default=0, metavar="S", help="which windows are held out (default 0)")
     p.add_argument("--out", type=Path, default=default_out, metavar="DIR",
-                   help=f"output folder (default {default_out})")
+                   help=f"output folder (default {default_out}; {DESTINATION_RULE})")
 
 
 def effect_names(text: str, option: str, known: tuple[str, ...] = tuple(EFFECTS)) -> list[str]:

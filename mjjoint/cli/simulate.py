@@ -7,15 +7,19 @@ import os
 from pathlib import Path
 from typing import Any
 
+import mujoco
 import numpy as np
 
 from ..assets.multi import read_model_file, write_traces_csv
 from ..excitation import EXCITATIONS, FromFile, excitation_fields
+from ..coupling.layout import NSTATE
 from ..modelfile import ModelFile, from_section
 from ..params import check
-from ..sim import Simulator, Trace
+from ..report.output import DESTINATION_RULE, check_destination, staged_files
+from ..sim import FULL, Simulator, Trace
 from .chunked import simulate_chunked
 from .errors import CliError
+from .memory import HEADROOM, check_fits
 
 DEFAULT_OUT = Path("out/simulate")
 DEFAULT_DURATION = 5.0  # [s]
@@ -29,6 +33,10 @@ examples:
   mjjoint simulate --excitation chirp --param f_start=20 --param sweep=log --spawn
   mjjoint simulate --model examples/stiff_linear.yaml --excitation multisine --seed 3
   mjjoint simulate --excitation file --file torque.csv --csv response.csv
+
+outputs appear only when complete: each is written as NAME.partial-<pid>.EXT beside it and
+renamed once all are written (an interrupt or error removes them). Output paths: """ + DESTINATION_RULE + """.
+A run that would not fit in the memory available is refused before it starts.
 
 excitation fields (--param KEY=VALUE):
 """ + "\n".join(f"  {name:10s} " + ", ".join(f"{k}={'(required)' if v is dataclasses.MISSING else v}"
@@ -104,18 +112,39 @@ def excitation_from_args(args: argparse.Namespace) -> tuple[str, Any]:
 
 
 def output_paths(args: argparse.Namespace) -> dict[str, Path]:
-    """Requested outputs (kind -> path), checked writable before any simulation time is spent."""
+    """Requested outputs (kind -> path), checked writable before any simulation time is spent.
+
+    Nothing is created here: the files and missing folders appear when the outputs are written.
+    """
     chosen = {"csv": args.csv, "plot": args.plot, "rrd": args.rrd}
+    option = {kind: f"--{kind}" for kind in chosen}
     if not any(chosen.values()) and not args.spawn:
         chosen = {"csv": args.out / "trace.csv", "plot": args.out / "trace.png", "rrd": args.out / "trace.rrd"}
+        option = dict.fromkeys(chosen, "--out")
     out = {kind: path for kind, path in chosen.items() if path is not None}
-    for path in out.values():
+    for kind, path in out.items():
         if path.is_dir():
             raise CliError(f"{path}: is a directory, not a file")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        check_destination(path, option[kind])
+        if path.exists() and not os.access(path, os.W_OK):
             raise CliError(f"{path}: permission denied")
     return out
+
+
+def check_memory(sim: Simulator, rate: float, duration: float) -> None:
+    """Refuse a run whose arrays would not fit in the memory available, before allocating them.
+
+    Per sample, 8 bytes for: the input (and its per-joint copy), the full-physics states twice
+    (the chunks and their stacked copy), and each joint's traces (9 signals, its plugin states
+    and the positions of every joint for the 3D view); times ``HEADROOM`` for the writers' copies.
+    """
+    joints = len(sim.joints)
+    nstate = mujoco.mj_stateSize(sim.model, FULL)
+    per_sample = 8 * (1 + joints + 2 * nstate + joints * (9 + NSTATE + sim.model.nq))
+    samples = rate * duration
+    check_fits(HEADROOM * per_sample * samples, f"--duration {duration:g} s at --rate {rate:g} Hz "
+               f"({samples:.3g} samples, {HEADROOM * per_sample:.0f} bytes each)",
+               "shorten --duration or lower --rate")
 
 
 def _summary(name: str, excitation, trace: Trace, rate: float) -> str:
@@ -126,6 +155,26 @@ def _summary(name: str, excitation, trace: Trace, rate: float) -> str:
             f"max |delta| {1e3 * np.abs(trace.delta).max():.3g} mrad, max |tau| {np.abs(trace.tau).max():.3g} N m")
 
 
+def write_outputs(paths: dict[str, Path], traces: list[Trace], sim: Simulator, name: str, excitation,
+                  spawn: bool) -> None:
+    """Write the traces to ``paths`` (kind -> path: csv, plot or plot1, plot2, ..., rrd)."""
+    many = len(traces) > 1
+    if "csv" in paths:
+        if many:
+            write_traces_csv(paths["csv"], traces)
+        else:
+            traces[0].to_csv(paths["csv"])
+    plots = [path for kind, path in paths.items() if kind.startswith("plot")]  # in joint order
+    if plots:
+        from .plot import plot_trace  # matplotlib only when a plot is asked for
+        for j, (trace, path) in enumerate(zip(traces, plots), start=1):
+            plot_trace(trace, path, title=f"mjjoint simulate: {excitation}" + (f", joint {j}" if many else ""))
+    if "rrd" in paths or spawn:
+        from ..viz.rerun_log import log_traces  # rerun only when asked for
+        log_traces({f"joint{j}": tr for j, tr in enumerate(traces, start=1)} if many else traces[0],
+                   model=sim.model, recording_name=f"simulate {name}", rrd_path=paths.get("rrd"), spawn=spawn)
+
+
 def run(args: argparse.Namespace) -> int:
     model = read_model_file(args.model) if args.model is not None else ModelFile()
     name, excitation = excitation_from_args(args)
@@ -133,27 +182,18 @@ def run(args: argparse.Namespace) -> int:
     duration = args.duration
     if duration is None:
         duration = excitation.duration if isinstance(excitation, FromFile) else DEFAULT_DURATION
-    u = excitation.sample(rate, duration)
     outputs = output_paths(args)
     sim = Simulator(model.compile(), sample_rate=rate)
+    check_memory(sim, rate, duration)
+    u = excitation.sample(rate, duration)
     traces = simulate_chunked(sim, np.repeat(u[:, None], len(sim.joints), axis=1))
     many = len(traces) > 1
-
-    if "csv" in outputs:
-        if many:
-            write_traces_csv(outputs["csv"], traces)
-        else:
-            traces[0].to_csv(outputs["csv"])
-    if "plot" in outputs:
-        from .plot import plot_trace  # matplotlib only when a plot is asked for
+    if many and "plot" in outputs:  # one plot per joint: NAME1.png, NAME2.png, ...
         path = outputs.pop("plot")
-        for j, trace in enumerate(traces, start=1):
-            outputs[f"plot{j}"] = plot_trace(trace, path.with_stem(f"{path.stem}{j}") if many else path,
-                                             title=f"mjjoint simulate: {excitation}" + (f", joint {j}" if many else ""))
-    if "rrd" in outputs or args.spawn:
-        from ..viz.rerun_log import log_traces  # rerun only when asked for
-        log_traces({f"joint{j}": tr for j, tr in enumerate(traces, start=1)} if many else traces[0],
-                   model=sim.model, recording_name=f"simulate {name}", rrd_path=outputs.get("rrd"), spawn=args.spawn)
+        outputs.update({f"plot{j}": path.with_stem(f"{path.stem}{j}") for j in range(1, len(traces) + 1)})
+    with staged_files(outputs.values()) as partial:
+        write_outputs({kind: partial[path] for kind, path in outputs.items()}, traces, sim, name, excitation,
+                      args.spawn)
     for j, trace in enumerate(traces, start=1):
         print((f"joint {j}: " if many else "") + _summary(name, excitation, trace, rate))
     if outputs:

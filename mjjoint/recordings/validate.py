@@ -12,7 +12,11 @@ from .errors import RecordingError
 
 MIN_SAMPLES = 10
 MAX_GAP = 5.0  # a step this many times the median period is a gap, not jitter
-DT_MIN, DT_MAX = 1e-7, 1.0  # [s]; outside this, t is almost surely not in seconds
+# [s]; outside this, t is almost surely not in seconds. Below 10 Hz no joint dynamics are
+# sampled (resonances lie at tens of Hz), while a 1 kHz recording with t in milliseconds has
+# a median period of exactly 1 "s".
+DT_MIN, DT_MAX = 1e-7, 0.1
+TIME_UNITS = (("milliseconds", 1e-3), ("microseconds", 1e-6), ("nanoseconds", 1e-9))
 
 # Largest plausible magnitude per signal kind, and what a larger value usually means.
 LIMITS: dict[str, tuple[float, str]] = {
@@ -75,10 +79,7 @@ def _check_time(t: np.ndarray, ctx: Context) -> None:
         )
     dt = float(np.median(d))
     if not DT_MIN <= dt <= DT_MAX:
-        raise ctx.error(
-            f"median sample period {dt:.3g} s is outside [{DT_MIN:g}, {DT_MAX:g}] s; "
-            "is t in seconds? (e.g. --scales t=1e-3 for milliseconds)"
-        )
+        raise ctx.error(_time_unit_message(dt, float(t[-1] - t[0])))
     gaps = np.flatnonzero(d > MAX_GAP * dt)
     if gaps.size:
         i = int(gaps[0]) + 1
@@ -86,6 +87,18 @@ def _check_time(t: np.ndarray, ctx: Context) -> None:
             f"gap in time before {ctx.sample(i)}: step {d[i - 1]:.6g} s after t={float(t[i - 1])!r} "
             f"is {d[i - 1] / dt:.1f}x the median period {dt:.6g} s ({gaps.size} gap(s))"
         )
+
+
+def _time_unit_message(dt: float, span: float) -> str:
+    """Why a median period ``dt`` outside [DT_MIN, DT_MAX] is refused, naming the likely unit."""
+    plain = (f"median sample period {dt:.3g} s ({1 / dt:.3g} Hz over {span:.6g} s) is outside "
+             f"[{DT_MIN:g}, {DT_MAX:g}] s")
+    if dt > DT_MAX:
+        for unit, factor in TIME_UNITS:
+            if DT_MIN <= dt * factor <= DT_MAX:
+                return (f"t looks like {unit}: {plain}; read as {unit} it is {1 / (dt * factor):.6g} Hz "
+                        f"over {span * factor:.6g} s (set --scales t={factor:g})")
+    return f"{plain}; is t in seconds? (e.g. --scales t=1e-3 for milliseconds)"
 
 
 def _check_magnitude(name: str, x: np.ndarray, ctx: Context) -> None:

@@ -1,10 +1,17 @@
-"""Output folders that appear complete or not at all, and JSON that is byte-reproducible.
+"""Outputs that appear complete or not at all, and JSON that is byte-reproducible.
 
-Everything is written into ``DIR.partial-<pid>`` beside ``DIR`` (same filesystem, so the final
-rename is atomic) and renamed to ``DIR`` only when every file is there. An interrupt or error
-removes the partial folder; a hard kill leaves one whose name says it is partial. A complete
-folder always holds ``run.json``, written last: that marks it as ours, so a later run may
-replace it, while a folder of someone else's files is never deleted.
+An output folder (``fit``/``diagnose --out``) is written into ``DIR.partial-<pid>`` beside
+``DIR`` (same filesystem, so the final rename is atomic) and renamed to ``DIR`` only when every
+file is there. Output files (``simulate --csv/--plot/--rrd``) are written as
+``NAME.partial-<pid>.EXT`` beside each final name and renamed once all of them are written. An
+interrupt or error removes the partial files and folders; a hard kill leaves ones whose names
+say they are partial. A complete folder always holds ``run.json``, written last: that marks it
+as ours, so a later run may replace it, while a folder of someone else's files is never deleted.
+
+Where outputs may go (``DESTINATION_RULE``, the same for every command): missing folders are
+created only inside the working directory; elsewhere the output's folder must already exist.
+A typo such as ``/nonexistent/dir/x.csv`` is then an error instead of a new folder tree at the
+filesystem root.
 """
 from __future__ import annotations
 
@@ -12,14 +19,67 @@ import json
 import math
 import os
 import shutil
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .. import interrupts
+
 MARKER = "run.json"
+DESTINATION_RULE = ("missing folders are created only inside the working directory; "
+                    "elsewhere the output's folder must exist")
+
+
+def check_destination(path: str | Path, option: str) -> None:
+    """Raise a one-line error now, before any work, if ``path`` could not be created later.
+
+    Nothing is created yet (a bad input found later must leave no trace): the nearest existing
+    ancestor, where missing folders would be made, is checked instead.
+    """
+    target = Path(os.path.abspath(path))
+    base = target.parent
+    while not base.exists():
+        base = base.parent
+    if not base.is_dir():
+        raise ValueError(f"{option} {path}: {base} is a file, so {path} cannot be created")
+    if base != target.parent and not target.is_relative_to(Path.cwd()):
+        raise ValueError(f"{option} {path}: folder {target.parent} does not exist ({DESTINATION_RULE})")
+    if not os.access(base, os.W_OK | os.X_OK):
+        raise PermissionError(13, "Permission denied", str(base))
+
+
+def partial_name(path: Path) -> Path:
+    """Where ``path`` is written before it is complete: beside it, same suffix (the writers go by it)."""
+    return path.with_name(f"{path.stem}.partial-{os.getpid()}{path.suffix}")
+
+
+@contextmanager
+def staged_files(paths: Iterable[Path]) -> Iterator[dict[Path, Path]]:
+    """Yield final -> partial path for each output file; on success the partials replace the finals.
+
+    On any exception (KeyboardInterrupt included) every partial file is removed and no final
+    name is touched, so a file under its final name is always a complete one.
+    """
+    partial = {Path(p): partial_name(Path(p)) for p in paths}
+    start = interrupts.count()
+    try:
+        for final, tmp in partial.items():
+            final.parent.mkdir(parents=True, exist_ok=True)
+            tmp.unlink(missing_ok=True)  # leftover of an earlier run with our pid
+        yield partial
+        missing = [str(f) for f, tmp in partial.items() if not tmp.is_file()]
+        if missing:
+            raise RuntimeError(f"output not written: {', '.join(missing)}")  # a bug in the command
+        interrupts.raise_if_interrupted(start)  # a Ctrl-C Python could not raise where it came
+        for final, tmp in partial.items():
+            os.replace(tmp, final)
+    except BaseException:
+        for tmp in partial.values():
+            tmp.unlink(missing_ok=True)
+        raise
 
 
 def jsonable(obj: Any) -> Any:
@@ -61,15 +121,7 @@ class OutputDir:
         if p.is_dir() and any(p.iterdir()) and not (p / MARKER).is_file():
             raise ValueError(f"{p}: folder exists and is not an mjjoint output (no {MARKER}); "
                              "choose another --out or empty it")
-        # Nothing is created yet (a bad input found later must leave no trace): check the
-        # nearest existing ancestor, where the missing folders will be made.
-        base = p.parent.absolute()
-        while not base.exists():
-            base = base.parent
-        if not base.is_dir():
-            raise ValueError(f"{base}: is a file, so {p} cannot be created; choose another --out")
-        if not os.access(base, os.W_OK | os.X_OK):
-            raise PermissionError(13, "Permission denied", str(base))
+        check_destination(p, "--out")
 
     @contextmanager
     def staged(self) -> Iterator[Path]:
@@ -78,8 +130,10 @@ class OutputDir:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         shutil.rmtree(self.partial, ignore_errors=True)  # leftover of an earlier run with our pid
         self.partial.mkdir()
+        start = interrupts.count()
         try:
             yield self.partial
+            interrupts.raise_if_interrupted(start)
             if not (self.partial / MARKER).is_file():
                 raise RuntimeError(f"output written without {MARKER}")  # a bug in the command
             self._replace()

@@ -1,0 +1,48 @@
+"""Session-wide test setup: MuJoCo's log goes to a temporary folder, never into the tree.
+
+MuJoCo appends every warning (an unstable state: "Nan, Inf or huge value in QACC", ...) to
+``MUJOCO_LOG.TXT`` in the working directory. Tests that drive a model to divergence on
+purpose, or call ``mujoco.rollout`` without ``mujoco_log_silenced``, would leave that file in
+the repository root; the session points the log at a temporary file instead, and fails if
+the root's log appeared or grew anyway (a subprocess started in the root, say).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+ROOT_LOG = ROOT / "MUJOCO_LOG.TXT"
+
+
+def _log_state() -> tuple[int, int] | None:
+    return (ROOT_LOG.stat().st_size, ROOT_LOG.stat().st_mtime_ns) if ROOT_LOG.exists() else None
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    session.config.stash[_ROOT_LOG_KEY] = _log_state()
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    if _log_state() != session.config.stash.get(_ROOT_LOG_KEY, None):
+        print(f"\nFAILED: the tests wrote {ROOT_LOG} (MuJoCo warnings); run them with a temporary "
+              "log or working directory (tests/conftest.py)")
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+_ROOT_LOG_KEY = pytest.StashKey[tuple[int, int] | None]()
+
+
+@pytest.fixture(autouse=True, scope="session")
+def mujoco_log_file(tmp_path_factory) -> Path:
+    """Where MuJoCo writes its log during the tests (a temporary file)."""
+    config = mujoco.MjLogConfig.get()
+    previous = config.logfile
+    config.logfile = str(tmp_path_factory.mktemp("mujoco") / "MUJOCO_LOG.TXT")
+    config.set()
+    yield Path(config.logfile)
+    config = mujoco.MjLogConfig.get()
+    config.logfile = previous
+    config.set()
