@@ -203,8 +203,8 @@ def test_static_friction_slope(w, p):
     args = (w, p.fc, p.fs, p.vs, p.shape, p.sigma, p.asym, p.v_eps, p.sigma_asym)
     scale = (p.fc + p.fs) / p.v_eps + (p.fs + p.fc) / p.vs * 10 + p.sigma * 2 + 1e-12
     # tanh's digits near 0 (smooth_sign is within 2.3e-16 of it, absolutely) are all a cusp term of a
-    # Stribeck shape below 1 sees: within (Fs - Fc) shape |w/Vs|^shape of the reference there.
-    cusp = abs(p.fs - p.fc) * p.shape * abs(w / p.vs) ** p.shape if p.shape < 1 else 0.0
+    # Stribeck shape below 1 sees: within (Fs - Fc) shape |w/Vs|^shape / v_eps of the reference there.
+    cusp = abs(p.fs - p.fc) * p.shape * abs(w / p.vs) ** p.shape / p.v_eps if p.shape < 1 else 0.0
     assert abs(stribeck.static_friction_slope(*args) - ref.static_friction_slope(*args)) <= 1e-12 * scale + cusp
 
 
