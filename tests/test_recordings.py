@@ -158,8 +158,8 @@ def test_mat_column_vectors_rows_and_scales(tmp_path: Path) -> None:
     ("columns", "expected"),
     [
         ({"u": "volts", "q": "pos_deg[0]", "theta": "pos_deg[1]"}, ["'volts' (for u) not found", "'vir'", "'pos_deg'"]),
-        ({"u": "vir", "q": "pos_deg", "theta": "pos_deg[1]"}, ["shape (2, 50)", "pos_deg[i]"]),
-        ({"u": "vir", "q": "pos_deg[0]", "theta": "pos_deg[2]"}, ["cannot take row 2"]),
+        ({"u": "vir", "q": "pos_deg", "theta": "pos_deg[1]"}, ["shape (2, 50)", "pos_deg[i, :]", "pos_deg[:, j]"]),
+        ({"u": "vir", "q": "pos_deg[0]", "theta": "pos_deg[2]"}, ["row 2 is out of range for shape (2, 50)", "0..1"]),
         ({"u": "vir", "q": "pos_deg[0]", "theta": "name"}, ["not a real numeric array"]),
         ({"u": "vir"}, ["missing required variable(s) q, theta", "'pos_deg'"]),
     ],
@@ -172,6 +172,61 @@ def test_mat_bad_mapping_names_the_variables(tmp_path: Path, columns: dict[str, 
     assert str(path) in str(err.value)
     for part in expected:
         assert part in str(err.value)
+
+
+def test_mat_struct_fields_by_dotted_path(tmp_path: Path) -> None:
+    rec = make_recording()
+    path = tmp_path / "struct.mat"
+    # A MATLAB struct `rec` with a nested struct `rec.link`, as save() writes it.
+    scipy.io.savemat(path, {"rec": {"time_cont": rec.t[:, None], "u": rec.u, "q": rec.q, "link": {"theta": rec.theta}}})
+    back = read_recording(path, columns=parse_column_map("t=rec.time_cont,u=rec.u,q=rec.q,theta=rec.link.theta"))
+    assert_same_signals(make_recording(tau=False), back)
+
+
+@pytest.mark.parametrize(
+    ("source", "expected"),
+    [
+        ("rec.time", ["struct 'rec' has no field 'time'", "'time_cont'"]),
+        ("rec", ["is a struct with fields", "rec.FIELD"]),
+        ("rec.time_cont.x", ["'rec.time_cont' is not a struct"]),
+        ("other.t", ["not found", "'rec'"]),
+        ("arr.t", ["'arr' is a struct array of shape (1, 2)"]),
+        ("data[:, -1]", ["column -1 is out of range for shape (50, 7)", "0..6", "no negative"]),
+        ("data[:, 7]", ["column 7 is out of range for shape (50, 7)", "0..6"]),
+        ("data[0]", ["data[0] is row 0 (7 values) of shape (50, 7)", "write data[:, 0]"]),
+        ("data[:, :]", ["unsupported index [:, :]", "NAME[:, j]"]),
+        ("data[1:3]", ["unsupported index [1:3]"]),
+        ("data[:, 1", ["cannot parse", "NAME[:, j]"]),
+        ("cube[:, 0]", ["column index needs a 2-D array, got shape (50, 2, 2)"]),
+    ],
+)
+def test_source_errors_name_the_path_and_shape(tmp_path: Path, source: str, expected: list[str]) -> None:
+    path = tmp_path / "struct.mat"
+    struct_array = np.array([[(np.zeros(N),), (np.ones(N),)]], dtype=[("t", object)])  # MATLAB arr(1).t, arr(2).t
+    scipy.io.savemat(path, {"rec": {"time_cont": np.arange(N) * DT}, "arr": struct_array, "data": np.zeros((N, 7)), "cube": np.zeros((N, 2, 2))})
+    with pytest.raises(RecordingError) as err:
+        read_recording(path, columns={"t": source, "u": "rec.time_cont", "q": "rec.time_cont", "theta": "rec.time_cont"})
+    message = str(err.value)
+    assert "\n" not in message and str(path) in message and "(for t)" in message
+    for part in expected:
+        assert part in message
+
+
+@pytest.mark.parametrize("suffix", [".mat", ".npz"])
+def test_matrix_columns_by_index(tmp_path: Path, suffix: str) -> None:
+    rec = make_recording()
+    data = np.column_stack([rec.t, rec.u, rec.q, rec.theta, rec.tau, np.zeros(N), np.ones(N)])  # N x 7
+    path = tmp_path / f"matrix{suffix}"
+    if suffix == ".mat":
+        scipy.io.savemat(path, {"data": data})
+    else:
+        np.savez(path, data=data)
+    back = read_recording(path, columns=parse_column_map("t=data[:,0],u=data[:, 1],q=data[ :,2 ],theta=data[:, 3],tau=data[:,4]"))
+    assert_same_signals(rec, back)
+
+
+def test_column_map_keeps_commas_inside_brackets() -> None:
+    assert parse_column_map("t=data[:, 0], q=rec.q,u=data[:,1]") == {"t": "data[:, 0]", "q": "rec.q", "u": "data[:,1]"}
 
 
 def test_multi_joint_scales_apply_to_every_joint_unless_overridden(tmp_path: Path) -> None:
