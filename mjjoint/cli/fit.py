@@ -77,6 +77,8 @@ def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
                    help="gear ratio (required unless --model gives it); N1,N2,... one per joint")
     r.add_argument("--columns", metavar="MAP", help="file names of the signals, e.g. t=time,u=cur,q=qm,theta=ql")
     r.add_argument("--scales", metavar="MAP", help="factors to SI, e.g. q=deg,theta=deg,u=2.5")
+    r.add_argument("--allow-gaps", action="store_true",
+                   help="interpolate across time steps longer than 5 median periods instead of refusing")
     r.add_argument("--k-m", type=numbers, metavar="K",
                    help="torque constant [N m/A]: u is recorded as a current; K1,K2,... one per joint")
     r.add_argument("--joint", type=joint_numbers, metavar="J[,K]",
@@ -210,7 +212,7 @@ def read_input(args: argparse.Namespace, gear_ratio: float | None, k_m: float | 
     return read_recording(args.recording,
                           columns=None if args.columns is None else parse_column_map(args.columns),
                           scales=None if args.scales is None else parse_scales(args.scales),
-                          gear_ratio=gear_ratio, k_m=k_m)
+                          gear_ratio=gear_ratio, k_m=k_m, allow_gaps=args.allow_gaps)
 
 
 def load_problem(args: argparse.Namespace):
