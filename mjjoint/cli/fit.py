@@ -23,6 +23,7 @@ from ..joint import JointParams
 from ..modelfile import ModelFile
 from ..physics.twosep import TwoSEP
 from ..recordings import Recording, parse_column_map, parse_scales, read_recording
+from ..recordings.resample import describe as describe_resampling
 from .errors import CliError
 
 DEFAULT_OUT = Path("out/fit")
@@ -244,6 +245,8 @@ def load_problem(args: argparse.Namespace):
     rec = read_input(args, base.gear_ratio, args.k_m)
     if not isinstance(rec, Recording):
         return per_joint.load_problems(args, model, rec)
+    if rec.meta["resampled"] is not None:
+        notes.append(describe_resampling(rec.meta["resampled"]))
     design = window_design(args)
     predictor = Predictor(Measured.from_recording(rec, base.gear_ratio), design)
     return Problem(str(args.recording), predictor, base, notes)
@@ -260,7 +263,8 @@ def _drive_problem(args: argparse.Namespace) -> Problem:
     if not isinstance(rec, Recording):
         raise CliError(f"--plant {args.plant} takes a single-joint recording")
     design = window_design(args)
-    return Problem(str(args.recording), Predictor(Measured.from_recording(rec, 1.0, output=False), design), base, [])
+    notes = [] if rec.meta["resampled"] is None else [describe_resampling(rec.meta["resampled"])]
+    return Problem(str(args.recording), Predictor(Measured.from_recording(rec, 1.0, output=False), design), base, notes)
 
 
 def window_design(args: argparse.Namespace) -> WindowDesign:

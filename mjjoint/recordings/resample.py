@@ -84,3 +84,12 @@ def to_uniform_grid(
         "largest_step": float(np.max(steps)),
     }
     return out, report
+
+
+def describe(report: Mapping[str, Any]) -> str:
+    """One line for the user and the run record: how a recording was resampled."""
+    return (
+        f"timestamps not uniform: resampled by {report['method']} onto {report['rate']:.6g} Hz "
+        f"({report['samples_in']} -> {report['samples_out']} samples; timestamps deviate up to "
+        f"{report['max_timestamp_deviation']:.3g} s from a uniform clock, longest step {report['largest_step']:.3g} s)"
+    )
