@@ -14,6 +14,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+import scipy.io
 import pytest
 from rerun.chunk import RrdReader
 
@@ -227,6 +228,18 @@ def test_columns_scales_and_torque_constant_reach_the_fit(files, fit_run, tmp_pa
     # Degrees round in the last bit, which 4 unconverged LM iterations carry to ~0.1 %; a scale
     # or torque constant not applied would be off by a factor of 57 or 4.
     assert got == pytest.approx(want, rel=0.01)
+
+
+def test_matlab_struct_matrix_and_jittered_clock_reach_the_fit(files, tmp_path, capsys):
+    """A lab's MAT file as recorded: a struct, one N x 4 matrix, a 1000.02 Hz clock with jitter."""
+    t, u, q, theta, tau = np.loadtxt(files["delayed"], delimiter=",", skiprows=1).T
+    stamps = t / 1.00002 + np.random.default_rng(0).uniform(-2e-4, 2e-4, len(t))
+    lab = tmp_path / "lab.mat"
+    scipy.io.savemat(lab, {"rec": {"time_cont": stamps[:, None], "data": np.column_stack([u, q, theta, tau])}})
+    columns = "t=rec.time_cont,u=rec.data[:, 0],q=rec.data[:,1],theta=rec.data[:, 2],tau=rec.data[:, 3]"
+    assert main(["fit", str(lab), *FIT, "--columns", columns, "--out", str(tmp_path / "fit")]) == 0
+    err = capsys.readouterr().err
+    assert "note: timestamps not uniform: resampled by linear interpolation onto 1000 Hz" in err
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -25,6 +25,7 @@ from mjjoint.recordings import (
     read_recording,
     write_recording,
 )
+from mjjoint.recordings.resample import nominal_period
 
 N = 50
 DT = 1e-3
@@ -103,7 +104,13 @@ def test_round_trip_any_floats(tmp_path: Path, data: list[tuple[float, ...]], ji
     rec = Recording(t=t, u=u, q=q, theta=theta, tau=tau)
     path = tmp_path / "any.csv"
     write_recording(path, rec)
-    assert_same_signals(rec, read_recording(path))
+    back = read_recording(path)
+    if back.meta["resampled"] is None:  # uniform timestamps: read back exactly as written
+        assert_same_signals(rec, back)
+    else:  # jitter: every signal interpolated linearly onto the uniform grid
+        assert jitter > 0 and back.t[0] == t[0]
+        for name, x in rec.signals().items():
+            np.testing.assert_array_equal(getattr(back, name), np.interp(back.t, t, x) if name != "t" else back.t)
 
 
 # --- mapping, scales, formats ----------------------------------------------------------
@@ -158,8 +165,8 @@ def test_mat_column_vectors_rows_and_scales(tmp_path: Path) -> None:
     ("columns", "expected"),
     [
         ({"u": "volts", "q": "pos_deg[0]", "theta": "pos_deg[1]"}, ["'volts' (for u) not found", "'vir'", "'pos_deg'"]),
-        ({"u": "vir", "q": "pos_deg", "theta": "pos_deg[1]"}, ["shape (2, 50)", "pos_deg[i]"]),
-        ({"u": "vir", "q": "pos_deg[0]", "theta": "pos_deg[2]"}, ["cannot take row 2"]),
+        ({"u": "vir", "q": "pos_deg", "theta": "pos_deg[1]"}, ["shape (2, 50)", "pos_deg[i, :]", "pos_deg[:, j]"]),
+        ({"u": "vir", "q": "pos_deg[0]", "theta": "pos_deg[2]"}, ["row 2 is out of range for shape (2, 50)", "0..1"]),
         ({"u": "vir", "q": "pos_deg[0]", "theta": "name"}, ["not a real numeric array"]),
         ({"u": "vir"}, ["missing required variable(s) q, theta", "'pos_deg'"]),
     ],
@@ -172,6 +179,164 @@ def test_mat_bad_mapping_names_the_variables(tmp_path: Path, columns: dict[str, 
     assert str(path) in str(err.value)
     for part in expected:
         assert part in str(err.value)
+
+
+def test_mat_struct_fields_by_dotted_path(tmp_path: Path) -> None:
+    rec = make_recording()
+    path = tmp_path / "struct.mat"
+    # A MATLAB struct `rec` with a nested struct `rec.link`, as save() writes it.
+    scipy.io.savemat(path, {"rec": {"time_cont": rec.t[:, None], "u": rec.u, "q": rec.q, "link": {"theta": rec.theta}}})
+    back = read_recording(path, columns=parse_column_map("t=rec.time_cont,u=rec.u,q=rec.q,theta=rec.link.theta"))
+    assert_same_signals(make_recording(tau=False), back)
+
+
+@pytest.mark.parametrize(
+    ("source", "expected"),
+    [
+        ("rec.time", ["struct 'rec' has no field 'time'", "'time_cont'"]),
+        ("rec", ["is a struct with fields", "rec.FIELD"]),
+        ("rec.time_cont.x", ["'rec.time_cont' is not a struct"]),
+        ("other.t", ["not found", "'rec'"]),
+        ("arr.t", ["'arr' is a struct array of shape (1, 2)"]),
+        ("data[:, -1]", ["column -1 is out of range for shape (50, 7)", "0..6", "no negative"]),
+        ("data[:, 7]", ["column 7 is out of range for shape (50, 7)", "0..6"]),
+        ("data[0]", ["data[0] is row 0 (7 values) of shape (50, 7)", "write data[:, 0]"]),
+        ("data[:, :]", ["unsupported index [:, :]", "NAME[:, j]"]),
+        ("data[1:3]", ["unsupported index [1:3]"]),
+        ("data[:, 1", ["cannot parse", "NAME[:, j]"]),
+        ("cube[:, 0]", ["column index needs a 2-D array, got shape (50, 2, 2)"]),
+    ],
+)
+def test_source_errors_name_the_path_and_shape(tmp_path: Path, source: str, expected: list[str]) -> None:
+    path = tmp_path / "struct.mat"
+    struct_array = np.array([[(np.zeros(N),), (np.ones(N),)]], dtype=[("t", object)])  # MATLAB arr(1).t, arr(2).t
+    scipy.io.savemat(path, {"rec": {"time_cont": np.arange(N) * DT}, "arr": struct_array, "data": np.zeros((N, 7)), "cube": np.zeros((N, 2, 2))})
+    with pytest.raises(RecordingError) as err:
+        read_recording(path, columns={"t": source, "u": "rec.time_cont", "q": "rec.time_cont", "theta": "rec.time_cont"})
+    message = str(err.value)
+    assert "\n" not in message and str(path) in message and "(for t)" in message
+    for part in expected:
+        assert part in message
+
+
+@pytest.mark.parametrize("suffix", [".mat", ".npz"])
+def test_matrix_columns_by_index(tmp_path: Path, suffix: str) -> None:
+    rec = make_recording()
+    data = np.column_stack([rec.t, rec.u, rec.q, rec.theta, rec.tau, np.zeros(N), np.ones(N)])  # N x 7
+    path = tmp_path / f"matrix{suffix}"
+    if suffix == ".mat":
+        scipy.io.savemat(path, {"data": data})
+    else:
+        np.savez(path, data=data)
+    back = read_recording(path, columns=parse_column_map("t=data[:,0],u=data[:, 1],q=data[ :,2 ],theta=data[:, 3],tau=data[:,4]"))
+    assert_same_signals(rec, back)
+
+
+def test_column_map_keeps_commas_inside_brackets() -> None:
+    assert parse_column_map("t=data[:, 0], q=rec.q,u=data[:,1]") == {"t": "data[:, 0]", "q": "rec.q", "u": "data[:,1]"}
+
+
+# --- timestamps: jitter, clock drift, gaps ----------------------------------------------
+
+
+def jittered_csv(path: Path, t: np.ndarray) -> None:
+    """Signals linear in time (so linear interpolation is exact) at the given timestamps."""
+    rows = [[repr(float(x)), 0.5 * x, 2.0 * x + 1.0, -x, 3.0] for x in t]
+    path.write_text(csv_text("t,u,q,theta,tau", rows))
+
+
+def test_jittered_drifting_clock_is_resampled_to_the_nominal_rate(tmp_path: Path) -> None:
+    rng = np.random.default_rng(5)
+    n, jitter = 2000, 0.3 * DT
+    t = 10.0 + np.arange(n) / 1000.02 + rng.uniform(-jitter, jitter, n)  # 1000.02 Hz clock, jittered stamps
+    path = tmp_path / "jitter.csv"
+    jittered_csv(path, t)
+    rec = read_recording(path)
+    info = rec.meta["resampled"]
+    assert info["method"] == "linear interpolation" and info["rate"] == 1000.0 and info["samples_in"] == n
+    assert rec.n == info["samples_out"] and rec.t[0] == t[0] and rec.t[-1] <= t[-1]
+    assert abs(rec.dt * 1000.0 - 1.0) < 1e-9  # the model's rate check (1/timestep divided by an integer) holds
+    assert 0.2 * DT < info["max_timestamp_deviation"] < 0.31 * DT
+    assert info["max_step_deviation"] < 0.61 * DT
+    np.testing.assert_allclose(rec.q, 2.0 * rec.t + 1.0, rtol=1e-12)
+    np.testing.assert_allclose(rec.u, 0.5 * rec.t, rtol=1e-12)
+
+
+def test_uniform_recording_is_left_as_recorded(tmp_path: Path) -> None:
+    path = tmp_path / "uniform.csv"
+    t = 170.0 + np.arange(N) * DT
+    jittered_csv(path, t)
+    rec = read_recording(path)
+    assert rec.meta["resampled"] is None
+    np.testing.assert_array_equal(rec.t, t)
+
+
+@pytest.mark.parametrize(
+    ("step", "timestep", "tolerance", "expected"),
+    [
+        (1 / 1000.02, None, 1e-4, 1e-3),
+        (3e-3 * (1 + 1e-5), None, 1e-4, 3e-3),  # 333.33 Hz: a round period
+        (1 / 2999.9, None, 1e-4, 1 / 3000),  # a round rate
+        (1 / 1234.5, None, 1e-6, 1 / 1234.5),  # no round number close enough: as measured
+        (0.99e-3, 5e-4, 0.0, 1e-3),  # a multiple of the model timestep
+        (1e-4, 5e-4, 0.0, 5e-4),
+    ],
+)
+def test_nominal_period_is_round(step: float, timestep: float | None, tolerance: float, expected: float) -> None:
+    assert nominal_period(step, timestep, tolerance) == pytest.approx(expected, rel=1e-12)
+
+
+def test_gap_is_refused_where_it_is_unless_allowed(tmp_path: Path) -> None:
+    t = np.arange(N) * DT
+    t[30:] += 10 * DT  # 11 periods between samples 29 and 30
+    path = tmp_path / "gap.csv"
+    jittered_csv(path, t)
+    with pytest.raises(RecordingError) as err:
+        read_recording(path)
+    message = str(err.value)
+    for part in ["gap in time before sample 30 (line 32)", "11.0x the median period", "allow_gaps=True (--allow-gaps)"]:
+        assert part in message
+    rec = read_recording(path, allow_gaps=True)
+    assert rec.n == N + 10 and rec.meta["resampled"]["largest_step"] == pytest.approx(11 * DT)
+    np.testing.assert_allclose(rec.q, 2.0 * rec.t + 1.0, rtol=1e-12)
+
+
+# --- large angles: a spinning shaft, degrees, counts --------------------------------------
+
+
+def spinning(path: Path, name: str, rate: float = 1000.0, revs_per_s: float = 50.0, unit: float = 1.0,
+             counts: bool = False, start: float = 0.0) -> np.ndarray:
+    """10 s of a shaft turning at a constant speed (500 revolutions at the defaults) as signal `name`."""
+    t = np.arange(int(10 * rate)) / rate
+    angle = (start + 2 * np.pi * revs_per_s * t + 1e-3 * np.sin(7 * t)) * unit
+    angle = np.round(angle) if counts else angle
+    np.savez(path, t=t, u=np.zeros_like(t), **{"q": np.zeros_like(t), "theta": np.zeros_like(t), name: angle})
+    return angle
+
+
+@pytest.mark.parametrize(("name", "start"), [("theta", 0.0), ("q", 2e6)])  # q: a multi-turn encoder, far from 0
+def test_spinning_shaft_in_rad_is_accepted(tmp_path: Path, name: str, start: float) -> None:
+    angle = spinning(tmp_path / "spin.npz", name, start=start)  # 500 revolutions in 10 s
+    assert np.abs(angle).max() > {"q": 1e6, "theta": 3e3}[name]  # past the limit for the kind
+    np.testing.assert_array_equal(getattr(read_recording(tmp_path / "spin.npz"), name), angle)
+
+
+@pytest.mark.parametrize(
+    ("name", "kwargs", "expected"),
+    [
+        ("theta", {"unit": 1 / DEG}, ["jumps by 18 at sample", "over 1 rad per sample", "looks like degrees", "--scales theta=deg"]),
+        ("q", {"unit": 4096 / (2 * np.pi), "counts": True}, ["every value is a whole number", "encoder counts", "q=FACTOR", "2*pi/(counts per revolution)"]),
+        ("theta", {"rate": 1e5, "revs_per_s": 2000.0}, ["moves at 1.257e+04 per s at sample", "over 10000 rad/s", "degrees or counts"]),
+    ],
+)
+def test_large_angle_in_degrees_or_counts_is_refused(tmp_path: Path, name: str, kwargs: dict, expected: list[str]) -> None:
+    spinning(tmp_path / "spin.npz", name, **kwargs)
+    with pytest.raises(RecordingError) as err:
+        read_recording(tmp_path / "spin.npz")
+    message = str(err.value)
+    assert "\n" not in message and f"column '{name}' reaches" in message
+    for part in expected:
+        assert part in message
 
 
 def test_multi_joint_scales_apply_to_every_joint_unless_overridden(tmp_path: Path) -> None:
@@ -318,7 +483,7 @@ BAD_CSV: dict[str, tuple[str | bytes, list[str]]] = {
     "too few samples": (csv_text(HEADER, valid_rows(5)), ["only 5 samples", "at least 10"]),
     "theta in counts": (csv_text(HEADER, rows_with(12, 3, 40960.0)), ["'theta'", "40960", "sample 12", "--scales theta=deg"]),
     "huge torque": (csv_text(HEADER, rows_with(2, 1, 3e7)), ["'u'", "3e+07", "wrong units"]),
-    "huge q": (csv_text(HEADER, rows_with(2, 2, -2e6)), ["'q'", "counts or degrees"]),
+    "huge q": (csv_text(HEADER, rows_with(2, 2, -2e6)), ["'q'", "jumps by 2e+06 at sample 3 (line 5)", "degrees or counts", "q=deg"]),
     "huge tau": (csv_text(HEADER, rows_with(2, 4, 2e6)), ["'tau'"]),
     "gap in time": (csv_text(HEADER, time_rows([0.001 * i for i in range(10)] + [0.1 + 0.001 * i for i in range(10)])), ["gap in time", "sample 10", "t=0.009"]),
     "time in milliseconds": (csv_text(HEADER, time_rows([2.0 * i for i in range(12)])), ["sample period 2 s", "seconds"]),
@@ -416,7 +581,8 @@ def test_accepted_oddities(tmp_path: Path) -> None:
     with pytest.raises(RecordingError, match="unknown column"):
         read_recording(path)
     rec = read_recording(path, allow_extra=True)
-    np.testing.assert_array_equal(rec.t, times)
+    np.testing.assert_allclose(rec.t, times[0] + np.arange(rec.n) * DT, rtol=0, atol=1e-15)
+    assert rec.meta["resampled"]["method"] == "linear interpolation"
 
 
 def test_mapped_column_missing_from_csv(tmp_path: Path) -> None:

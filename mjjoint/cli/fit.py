@@ -24,6 +24,7 @@ from ..modelfile import ModelFile
 from ..physics.twosep import TwoSEP
 from ..report.output import DESTINATION_RULE
 from ..recordings import Recording, parse_column_map, parse_scales, read_recording
+from ..recordings.resample import describe as describe_resampling
 from .errors import CliError
 
 DEFAULT_OUT = Path("out/fit")
@@ -78,6 +79,8 @@ def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
                    help="gear ratio (required unless --model gives it); N1,N2,... one per joint")
     r.add_argument("--columns", metavar="MAP", help="file names of the signals, e.g. t=time,u=cur,q=qm,theta=ql")
     r.add_argument("--scales", metavar="MAP", help="factors to SI, e.g. q=deg,theta=deg,u=2.5")
+    r.add_argument("--allow-gaps", action="store_true",
+                   help="interpolate across time steps longer than 5 median periods instead of refusing")
     r.add_argument("--k-m", type=numbers, metavar="K",
                    help="torque constant [N m/A]: u is recorded as a current; K1,K2,... one per joint")
     r.add_argument("--joint", type=joint_numbers, metavar="J[,K]",
@@ -211,7 +214,7 @@ def read_input(args: argparse.Namespace, gear_ratio: float | None, k_m: float | 
     return read_recording(args.recording,
                           columns=None if args.columns is None else parse_column_map(args.columns),
                           scales=None if args.scales is None else parse_scales(args.scales),
-                          gear_ratio=gear_ratio, k_m=k_m)
+                          gear_ratio=gear_ratio, k_m=k_m, allow_gaps=args.allow_gaps)
 
 
 def load_problem(args: argparse.Namespace):
@@ -243,6 +246,8 @@ def load_problem(args: argparse.Namespace):
     rec = read_input(args, base.gear_ratio, args.k_m)
     if not isinstance(rec, Recording):
         return per_joint.load_problems(args, model, rec)
+    if rec.meta["resampled"] is not None:
+        notes.append(describe_resampling(rec.meta["resampled"]))
     design = window_design(args)
     predictor = Predictor(Measured.from_recording(rec, base.gear_ratio), design)
     return Problem(str(args.recording), predictor, base, notes)
@@ -259,7 +264,8 @@ def _drive_problem(args: argparse.Namespace) -> Problem:
     if not isinstance(rec, Recording):
         raise CliError(f"--plant {args.plant} takes a single-joint recording")
     design = window_design(args)
-    return Problem(str(args.recording), Predictor(Measured.from_recording(rec, 1.0, output=False), design), base, [])
+    notes = [] if rec.meta["resampled"] is None else [describe_resampling(rec.meta["resampled"])]
+    return Problem(str(args.recording), Predictor(Measured.from_recording(rec, 1.0, output=False), design), base, notes)
 
 
 def window_design(args: argparse.Namespace) -> WindowDesign:

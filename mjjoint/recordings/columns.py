@@ -19,6 +19,7 @@ DEG = math.pi / 180
 ALLOWED = "t, u, q, theta, tau (or per joint: u1, q1, theta1, tau1, u2, ...)"
 
 _PER_JOINT = re.compile(r"(u|q|theta|tau)([1-9][0-9]*)")
+_ITEM_SEP = re.compile(r",(?![^\[]*\])")  # a comma outside brackets: data[:, 3] is one item
 
 
 def split_joint(name: str) -> tuple[str, int | None]:
@@ -35,7 +36,7 @@ def _pairs(text: str, option: str, example: str) -> Iterator[tuple[str, str]]:
     if not text.strip():
         raise RecordingError(f"{option}: empty; expected e.g. {example}")
     seen: set[str] = set()
-    for item in text.split(","):
+    for item in _ITEM_SEP.split(text):
         key, sep, value = (s.strip() for s in item.partition("="))
         if not (sep and key and value):
             raise RecordingError(f"{option}: {quote(item.strip())} is not of the form name=value (e.g. {example})")
@@ -75,7 +76,10 @@ def check_scales(scales: Mapping[str, float], option: str = "scales") -> dict[st
 
 
 def parse_column_map(text: str) -> dict[str, str]:
-    """Parse 't=time,u=vir,q=qm,theta=qm' into {canonical: source name}."""
+    """Parse 't=time,u=vir,q=qm,theta=qm' into {canonical: source name}.
+
+    In .mat and .npz files a source may pick a column (data[:, 3]) or a struct field (rec.q).
+    """
     return check_column_map(dict(_pairs(text, "--columns", "t=time,u=vir,q=qm,theta=qm")), "--columns")
 
 

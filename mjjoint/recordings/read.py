@@ -15,6 +15,7 @@ from .errors import RecordingError, listing
 from .mat_io import read_mat_table
 from .model import MultiRecording, Recording
 from .npz_io import read_npz_table
+from .resample import to_uniform_grid
 from .validate import Context, check_signals
 
 
@@ -54,6 +55,8 @@ def read_recording(
     k_m: float | None = None,
     *,
     allow_extra: bool = False,
+    allow_gaps: bool = False,
+    timestep: float | None = None,
 ) -> Recording | MultiRecording:
     """Read a recording and return it in canonical names and SI units.
 
@@ -61,12 +64,17 @@ def read_recording(
     are looked up under their canonical name. scales: canonical name -> multiplier
     (see parse_scales). k_m: torque constant [N·m/A]; when given, the u column holds a
     current and u = k_m * i. allow_extra: accept CSV columns that no signal uses.
+    Jittered or non-uniform timestamps are resampled onto a uniform grid by linear
+    interpolation (resample.to_uniform_grid; timestep [s]: make the period a multiple of
+    it); meta['resampled'] says how, and is None for a recording left as recorded.
+    allow_gaps: interpolate across steps longer than 5 median periods instead of refusing.
     Several joints (u1, q1, theta1, ...) give a MultiRecording. Raises RecordingError.
     """
     where, path = str(path), Path(path)
     columns = check_column_map(columns or {})
     scales = check_scales(scales or {})
     gear_ratio, k_m = _positive("gear_ratio", gear_ratio), _positive("k_m", k_m)
+    timestep = _positive("timestep", timestep)
     if not path.exists():
         raise RecordingError(f"{where}: no such file")
     if not path.is_file():
@@ -93,9 +101,11 @@ def read_recording(
                 f"{where}: unknown column(s) {listing(extra)}; allowed: {ALLOWED}{mapped}; "
                 "map them with --columns or pass allow_extra=True to ignore them"
             )
-    check_signals(signals, Context(where, sources, table.lines))
+    check_signals(signals, Context(where, sources, table.lines), allow_gaps)
+    signals, resampled = to_uniform_grid(signals, timestep)
 
-    meta = {"source": where, "format": path.suffix.lower()[1:], "columns": sources, "scales": factors, "k_m": k_m}
+    meta = {"source": where, "format": path.suffix.lower()[1:], "columns": sources, "scales": factors, "k_m": k_m,
+            "resampled": resampled}
     return _build(signals, gear_ratio, meta)
 
 

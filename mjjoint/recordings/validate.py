@@ -22,9 +22,16 @@ TIME_UNITS = (("milliseconds", 1e-3), ("microseconds", 1e-6), ("nanoseconds", 1e
 LIMITS: dict[str, tuple[float, str]] = {
     "u": (1e6, "wrong units? set --scales {name}=FACTOR, or --k-m if it is a current"),
     "tau": (1e6, "wrong units? set --scales {name}=FACTOR"),
-    "q": (1e6, "likely encoder counts or degrees: set --scales {name}=deg or {name}=FACTOR"),
-    "theta": (1e3, "likely degrees or counts: try --scales {name}=deg"),
+    # An angle past its limit is accepted when it turns like a shaft in rad (see _not_turning).
+    "q": (1e6, ""),
+    "theta": (1e3, ""),
 }
+# A large angle in counts is whole numbers; in degrees it moves 57x too far per sample.
+ANGLES = frozenset({"q", "theta"})
+MAX_ANGLE_STEP = 1.0  # [rad per sample]; under pi with margin: a larger step aliases anyway
+MAX_SPEED = 1e4  # [rad/s], about 95 000 rpm: beyond any motor
+COUNTS_HINT = "looks like encoder counts: set --scales {name}=FACTOR with FACTOR = 2*pi/(counts per revolution)"
+DEGREES_HINT = "looks like degrees or counts: set --scales {name}=deg or {name}=FACTOR"
 
 
 @dataclass(frozen=True)
@@ -46,8 +53,11 @@ class Context:
         return RecordingError(f"{self.file}: {message}")
 
 
-def check_signals(signals: Mapping[str, np.ndarray], ctx: Context) -> None:
-    """Raise RecordingError for the first problem found; signals must include 't'."""
+def check_signals(signals: Mapping[str, np.ndarray], ctx: Context, allow_gaps: bool = False) -> None:
+    """Raise RecordingError for the first problem found; signals must include 't'.
+
+    allow_gaps: accept steps longer than MAX_GAP median periods (the reader interpolates across them).
+    """
     t = signals["t"]
     for name, x in signals.items():
         if len(x) != len(t):
@@ -61,12 +71,12 @@ def check_signals(signals: Mapping[str, np.ndarray], ctx: Context) -> None:
             raise ctx.error(
                 f"column {ctx.column(name)} has {float(x[i])!r} at {ctx.sample(i)} ({bad.size} non-finite value(s))"
             )
-    _check_time(t, ctx)
+    _check_time(t, ctx, allow_gaps)
     for name, x in signals.items():
-        _check_magnitude(name, x, ctx)
+        _check_magnitude(name, x, t, ctx)
 
 
-def _check_time(t: np.ndarray, ctx: Context) -> None:
+def _check_time(t: np.ndarray, ctx: Context, allow_gaps: bool) -> None:
     # Extreme but finite times overflow to inf here; the period checks below then report them.
     with np.errstate(over="ignore"):
         d = np.diff(t)
@@ -81,11 +91,12 @@ def _check_time(t: np.ndarray, ctx: Context) -> None:
     if not DT_MIN <= dt <= DT_MAX:
         raise ctx.error(_time_unit_message(dt, float(t[-1] - t[0])))
     gaps = np.flatnonzero(d > MAX_GAP * dt)
-    if gaps.size:
+    if gaps.size and not allow_gaps:
         i = int(gaps[0]) + 1
         raise ctx.error(
             f"gap in time before {ctx.sample(i)}: step {d[i - 1]:.6g} s after t={float(t[i - 1])!r} "
-            f"is {d[i - 1] / dt:.1f}x the median period {dt:.6g} s ({gaps.size} gap(s))"
+            f"is {d[i - 1] / dt:.1f}x the median period {dt:.6g} s ({gaps.size} gap(s)); "
+            "pass allow_gaps=True (--allow-gaps) to interpolate linearly across gaps"
         )
 
 
@@ -101,14 +112,33 @@ def _time_unit_message(dt: float, span: float) -> str:
     return f"{plain}; is t in seconds? (e.g. --scales t=1e-3 for milliseconds)"
 
 
-def _check_magnitude(name: str, x: np.ndarray, ctx: Context) -> None:
+def _check_magnitude(name: str, x: np.ndarray, t: np.ndarray, ctx: Context) -> None:
     kind = split_joint(name)[0]
     if kind not in LIMITS:
         return
     limit, hint = LIMITS[kind]
     i = int(np.argmax(np.abs(x)))
-    if abs(x[i]) > limit:
-        raise ctx.error(
-            f"column {ctx.column(name)} reaches {float(x[i]):.6g} at {ctx.sample(i)} (|{name}| > {limit:g}); "
-            + hint.format(name=name)
-        )
+    if abs(x[i]) <= limit:
+        return
+    reaches = f"column {ctx.column(name)} reaches {float(x[i]):.6g} at {ctx.sample(i)} (|{name}| > {limit:g})"
+    if kind in ANGLES:
+        why = _not_turning(x, t, ctx)
+        if why is None:
+            return  # a shaft that turned many revolutions, in rad
+        reaches, hint = f"{reaches} and {why[0]}", why[1]
+    raise ctx.error(f"{reaches}; " + hint.format(name=name))
+
+
+def _not_turning(x: np.ndarray, t: np.ndarray, ctx: Context) -> tuple[str, str] | None:
+    """(what gives it away, hint) when a large angle is not a shaft turning in rad, else None."""
+    if np.all(x == np.round(x)):
+        return "every value is a whole number", COUNTS_HINT
+    step = np.abs(np.diff(x))
+    j = int(np.argmax(step))
+    if step[j] > MAX_ANGLE_STEP:
+        return f"jumps by {step[j]:.4g} at {ctx.sample(j + 1)} (over {MAX_ANGLE_STEP:g} rad per sample)", DEGREES_HINT
+    speed = step / np.diff(t)
+    j = int(np.argmax(speed))
+    if speed[j] > MAX_SPEED:
+        return f"moves at {speed[j]:.4g} per s at {ctx.sample(j + 1)} (over {MAX_SPEED:g} rad/s)", DEGREES_HINT
+    return None
