@@ -2,10 +2,10 @@
 diagnosis that names the physics a model is missing from a recording.
 
 Importing mjjoint registers the ``mjjoint.joint`` engine plugin with MuJoCo, so the shipped
-MJCF (``assets/mjcf``) loads and runs in plain MuJoCo too::
+MJCF (``mjjoint.ASSETS_DIR``, package data) loads and runs in plain MuJoCo too::
 
     import mjjoint, mujoco
-    model = mujoco.MjModel.from_xml_path("assets/mjcf/arm3.xml")
+    model = mujoco.MjModel.from_xml_path(str(mjjoint.ASSETS_DIR / "arm3.xml"))
 
 Three lines to a simulated recording::
 
@@ -13,7 +13,7 @@ Three lines to a simulated recording::
     trace = mjjoint.simulate(mjjoint.Chirp().sample(1000, 5))
     trace.to_csv("chirp.csv")
 """
-from .assets import ArmSpec, DriveSpec, build_arm, build_drive, load_model, scene_path
+from .assets import ASSETS_DIR, ArmSpec, DriveSpec, build_arm, build_drive, load_model, scene_path
 from .coupling.plugin import register, register_model
 from .excitation import EXCITATIONS, Chirp, FromFile, Impulse, Multisine, Step
 from .joint import GROUND, JointParams, stable_timestep
@@ -35,7 +35,7 @@ register()
 __version__ = "0.1.0"
 
 __all__ = [
-    "ArmSpec", "BoucWen", "DriveSpec", "Chirp", "EXCITATIONS", "FromFile", "GROUND", "Impulse", "JointParams",
+    "ASSETS_DIR", "ArmSpec", "BoucWen", "DriveSpec", "Chirp", "EXCITATIONS", "FromFile", "GROUND", "Impulse", "JointParams",
     "LoadFriction", "ModelFile", "MultiRecording", "Multisine", "Recording", "RecordingError",
     "Simulator", "StaticFriction", "Step", "TorqueRipple", "Trace", "Transmission", "TwoSEP",
     "build_arm", "build_drive", "dump_model_file", "load_model", "load_model_file", "log_traces", "read_recording",

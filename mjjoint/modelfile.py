@@ -27,7 +27,7 @@ from typing import Any
 import mujoco
 import yaml
 
-from .assets import ArmSpec, load_model
+from .assets import ASSETS_DIR, ArmSpec, load_model
 from .joint import SECTIONS, JointParams
 from .params import check, from_mapping, is_number
 
@@ -159,6 +159,8 @@ def load_model_file(path: str | Path) -> ModelFile:
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
         raise ValueError(f"{path}: unsupported model file type {suffix!r} (allowed: {', '.join(SUFFIXES)})")
+    if suffix == ".xml" and not path.is_file() and path.parent == Path(".") and (ASSETS_DIR / path.name).is_file():
+        path = ASSETS_DIR / path.name  # a shipped MJCF by its name: "arm3.xml"
     if not path.is_file():
         raise ValueError(f"{path}: no such file")
     if suffix == ".xml":

@@ -8,7 +8,7 @@ plugin states; the bare model takes time, qpos and qvel), with the same controls
 of a ratio compute the same motion and differ only in the joint physics.
 
   single joint     the shipped arm (build_arm defaults): the plugin, 2SEP + Bouc-Wen + load friction
-  3-joint arm      assets/mjcf/arm3.xml: three plugin instances
+  3-joint arm      mjjoint/assets/mjcf/arm3.xml: three plugin instances
   dcmotor anchor   the native reference: the single-joint bare arm whose motor actuator is
                    MuJoCo's C <dcmotor> with LuGre friction and cogging (scripts/bench_step.py)
 

@@ -2,7 +2,7 @@
 
 One process, single thread, the measurement of scripts/bench_step.py (its RolloutTimer and
 StepLoopTimer: thread CPU time, configurations interleaved per repeat, best repeat counts):
-  arm3 plugin   assets/mjcf/arm3.xml: three mjjoint.joint instances (full nonlinear physics)
+  arm3 plugin   mjjoint/assets/mjcf/arm3.xml: three mjjoint.joint instances (full nonlinear physics)
   arm3 bare     the same MJCF with the plugin instances deleted (bodies, rods, actuators kept)
   single ...    the shipped single-joint arm, plugin and bare, from the same run
 Timers as in bench_step; "state-matched" (both arms rolled out from the same states along the

@@ -1,7 +1,7 @@
 """EMPS (real prismatic drive): diagnose from a minimal rigid model, compare with the published fit.
 
 Runs ``mjjoint diagnose``'s loop on ``DATA_EMPS.mat`` starting from the carriage mass alone
-(a linear direct drive, ``assets/mjcf/linear_drive.xml``), writes the usual report, then
+(a linear direct drive, ``mjjoint/assets/mjcf/linear_drive.xml``), writes the usual report, then
 scores the final model next to Janot et al.'s IDIM-LS reference on both files: parameters,
 their relative force error (with their own procedure, ``mjjoint.datasets.emps``), and the
 windowed position-prediction NRMSE on the validation file, which no fit has seen.

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mjjoint.assets import ArmSpec
+from mjjoint.assets import ASSETS_DIR, ArmSpec
 import mjjoint.cli.memory as memory
 import mjjoint.viz.rerun_log as rerun_log
 from mjjoint.cli import main
@@ -80,7 +80,7 @@ def test_a_stiffer_model_file_deflects_less(tmp_path):
 
 def test_mjcf_model_and_file_excitation_replay_the_recorded_input(tmp_path):
     first, replay = tmp_path / "first.csv", tmp_path / "replay.csv"
-    xml = Path(__file__).resolve().parents[1] / "assets" / "mjcf" / "scene.xml"
+    xml = ASSETS_DIR / "scene.xml"
     assert main(["simulate", "--model", str(xml), "--excitation", "multisine", "--param", "n=8",
                  "--duration", "0.4",
                  "--csv", str(first)]) == 0

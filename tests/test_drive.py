@@ -33,7 +33,7 @@ def test_a_direct_drive_needs_its_output_grounded():
 
 
 def test_shipped_linear_drive_is_the_published_emps_model():
-    model = load_model("assets/mjcf/linear_drive.xml")
+    model = load_model("mjjoint/assets/mjcf/linear_drive.xml")
     assert model.jnt_type[0] == mujoco.mjtJoint.mjJNT_SLIDE
     d = mujoco.MjData(model)
     d.qvel[0] = 0.1

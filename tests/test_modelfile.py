@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from mjjoint.assets import ArmSpec
+from mjjoint.assets import ASSETS_DIR, ArmSpec
 from mjjoint.joint import JointParams
 from mjjoint.modelfile import ModelFile, dump_model_file, load_model_file
 from mjjoint.physics.boucwen import BoucWen
@@ -70,7 +70,7 @@ def test_a_section_without_kind_takes_its_first_kind(tmp_path):
 
 
 def test_an_mjcf_path_is_taken_as_the_model():
-    xml = Path(__file__).resolve().parents[1] / "assets" / "mjcf" / "elastic_joint.xml"
+    xml = ASSETS_DIR / "elastic_joint.xml"
     m = load_model_file(xml)
     assert m.mjcf == xml and m.arm is None and m.joint is None
 

@@ -2,7 +2,7 @@
 
 "Survive" means MuJoCo raised no warning of any kind (instability resets, bad controls,
 full buffers, ...) and no state (qpos, qvel, act, plugin states) ever became NaN or inf.
-Assets are discovered with a glob, so models added to assets/mjcf/ later are covered; a
+Assets are discovered with a glob, so models added to mjjoint/assets/mjcf/ later are covered; a
 file that does not compile on its own is skipped only when another asset includes it.
 """
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Variants of the shipped single-joint arm, built with MuJoCo's own ``MjSpec``.
 
-The commented ``assets/mjcf/elastic_joint.xml`` is the source of truth; ``build_arm`` loads
+The commented ``mjjoint/assets/mjcf/elastic_joint.xml`` is the source of truth; ``build_arm`` loads
 it and changes only what an ``ArmSpec`` or ``JointParams`` says, so every variant keeps the
 asset's classes, sensors and keyframe. MjSpec (not dm_control.mjcf) because it round-trips
 ``<extension><plugin>`` configs and compiles in-process without an XML detour.
@@ -19,7 +19,7 @@ from ..joint import GROUND, JointParams
 from ..params import check
 from .stability import check_model_stability
 
-ASSETS_DIR = Path(os.environ.get("MJJOINT_ASSETS", Path(__file__).resolve().parents[2] / "assets" / "mjcf"))
+ASSETS_DIR = Path(os.environ.get("MJJOINT_ASSETS", Path(__file__).resolve().parent / "mjcf"))
 ARM_XML = "elastic_joint.xml"
 # History length reserved whenever a delay is on, so models differing only in the delay value
 # keep one size signature (mujoco.rollout batches need that).
@@ -29,7 +29,7 @@ MAX_DELAY_SAMPLES = 24
 def scene_path(name: str = "scene.xml") -> Path:
     path = ASSETS_DIR / name
     if not path.exists():
-        raise FileNotFoundError(f"MJCF asset {path} not found (set MJJOINT_ASSETS to the assets/mjcf folder)")
+        raise FileNotFoundError(f"MJCF asset {path} not found (set MJJOINT_ASSETS to the mjjoint/assets/mjcf folder)")
     return path
 
 

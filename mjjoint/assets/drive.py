@@ -1,7 +1,7 @@
 """A direct drive: one motor joint carrying its load, no gear elasticity, no output encoder.
 
 The elastic joint with its output cut free (``JointParams(transmission=None)``): a linear axis
-driven through a stiff ball screw (the shipped ``assets/mjcf/linear_drive.xml``, the EMPS), or
+driven through a stiff ball screw (the shipped ``mjjoint/assets/mjcf/linear_drive.xml``, the EMPS), or
 a rotary servo whose one encoder sits at the output. Friction, ripple, input delay and offset
 act on the single joint exactly as on the elastic arm's motor, through the same plugin.
 """

@@ -14,7 +14,7 @@ but not the joint names inside the plugin configs (see docs/multijoint.md).
 
 Also here: per-joint model files (``[[joint]]`` entries), scripted joint-space tracking with
 a motor-side PD controller, per-joint recordings, and the two shipped arms
-(``python -m mjjoint.assets.multi`` regenerates assets/mjcf/arm2_planar.xml and arm3.xml).
+(``python -m mjjoint.assets.multi`` regenerates mjjoint/assets/mjcf/arm2_planar.xml and arm3.xml).
 """
 from __future__ import annotations
 

@@ -7,6 +7,7 @@ Adding a command = adding its module name to ``COMMANDS``.
 from __future__ import annotations
 
 import importlib
+from importlib.metadata import version
 from collections.abc import Sequence
 
 from .errors import PROG, ArgumentParser, CliError, guarded
@@ -18,6 +19,7 @@ __all__ = ["COMMANDS", "CliError", "build_parser", "main"]
 
 def build_parser() -> ArgumentParser:
     parser = ArgumentParser(prog=PROG, description="Elastic robot joints (Ruderman 2012) in MuJoCo.")
+    parser.add_argument("--version", action="version", version=f"{PROG} {version('mjjoint')}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMANDS:
         importlib.import_module(f"{__name__}.{name}").register(sub)

@@ -2,7 +2,7 @@
 
 A real prismatic axis (DC motor, ball screw, carriage) in closed-loop position control: the
 estimation file ``DATA_EMPS.mat`` and the validation file ``DATA_EMPS_PULSES.mat`` (force
-pulses added). mjjoint reads it as a direct drive (``assets/mjcf/linear_drive.xml``): u is the
+pulses added). mjjoint reads it as a direct drive (``mjjoint/assets/mjcf/linear_drive.xml``): u is the
 motor force gtau * vir [N], q the carriage position [m]; there is no output-side sensor.
 
 The published reference is the inverse-dynamics least-squares (IDIM-LS) fit of
