@@ -30,8 +30,15 @@ def test_concealed_effect_is_named_and_nothing_else(effect, tmp_path):
         assert score.parameter_error is not None and score.parameter_error < 0.5, score
 
 
+# With Eq. 14's drive regularised at rest (physics/twosep.py), the concealed 2SEP truth predicts
+# this lab programme's held-out windows no better than the base model (docs/benchmark.md): nothing
+# can name it until the programme exercises the lag (slow reversals) or the lag's reading changes.
+UNDETECTABLE = pytest.mark.xfail(strict=True, reason="the 2SEP truth is no better than the base on held-out windows")
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("effect", [e for e in CONCEALED])
+@pytest.mark.parametrize("effect", [pytest.param(e, marks=UNDETECTABLE) if e == "dynamic_friction" else e
+                                    for e in CONCEALED])
 def test_full_case_set(effect, tmp_path):
     score = run_case(effect, seed=2, folder=tmp_path, duration=20.0)
     assert score.passed, score

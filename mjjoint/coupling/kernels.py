@@ -1,9 +1,12 @@
 """The joint's per-step physics on a parameter block and a state slice (pure, numba).
 
-``joint_forces`` is what the plugin's compute adds to qfrc_passive; ``joint_advance`` is the
-step's update of the internal states, which compute applies first, once per step
-(``joint_catch_up``). All take plain arrays, so the offline tools (traces, energy, tests)
-evaluate the very functions the plugin runs.
+``joint_forces`` is what the plugin's compute adds to qfrc_passive (``joint_evaluate``: the
+rotor's velocity-dependent torques linearly implicit, the transmission's stiffness limited);
+``joint_advance`` is the step's update of the internal states, which compute applies first,
+once per step (``joint_catch_up``, which also infers the torques the plugin does not see from
+the step just taken). All take plain arrays, so the offline tools (traces, energy, tests)
+evaluate the very functions the plugin runs. docs/design.md, "Integration", says what each
+scheme converges to.
 """
 from __future__ import annotations
 
