@@ -38,11 +38,11 @@ class JointIndex:
     actuator: int         # actuator driving the motor joint (-1: none)
     k_m: float
 
-    def step_over_inertia(self, model: mujoco.MjModel) -> tuple[float, float]:
-        """h/J of the motor and the link dof (0 for a side fixed to the world), as the plugin's
-        compute reads them (``kernels.joint_evaluate``)."""
+    def steps(self, model: mujoco.MjModel) -> tuple[float, float, float]:
+        """(h, h/J of the motor dof, h/J of the link dof; 0 for a side fixed to the world), as the
+        plugin's compute reads them: the step arguments of the ``coupling.kernels``."""
         h, invw = model.opt.timestep, model.dof_invweight0
-        return (float(h * invw[self.motor_dof]) if self.motor_dof >= 0 else 0.0,
+        return (float(h), float(h * invw[self.motor_dof]) if self.motor_dof >= 0 else 0.0,
                 float(h * invw[self.link_dof]) if self.link_dof >= 0 else 0.0)
 
 
@@ -190,11 +190,10 @@ class Simulator:
             theta = qpos[:, ji.link_qpos] if ji.link_qpos >= 0 else zero
             qd = qvel[:, ji.motor_dof] if ji.motor_dof >= 0 else zero
             thd = qvel[:, ji.link_dof] if ji.link_dof >= 0 else zero
-            h = self.model.opt.timestep
-            hj, hjl = ji.step_over_inertia(self.model)
+            steps = ji.steps(self.model)
             st = settled_states(ji.block, np.ascontiguousarray(states[:, ji.state_start:ji.state_start + NSTATE]),
-                                states[:, 0], q, qd, theta, thd, h, hj, hjl)
-            tau, fric, load = joint_traces(ji.block, st, q, qd, theta, thd, h, hj, hjl)
+                                states[:, 0], q, qd, theta, thd, *steps)
+            tau, fric, load = joint_traces(ji.block, st, q, qd, theta, thd, *steps)
             out.append(Trace(t=states[:, 0].copy(), u=u2[:, j].copy(), q=q.copy(), theta=theta.copy(),
                              qd=qd.copy(), thetad=thd.copy(), tau=tau, friction=fric, load_friction=load,
                              states=st, gear_ratio=ji.gear_ratio, qpos=qpos.copy()))

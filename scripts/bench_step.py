@@ -219,7 +219,7 @@ class KernelTimer:
         s = timer.state[0]
         self.args = (ji.block, np.zeros(NSTATE), s[:, 1 + ji.motor_qpos].copy(), s[:, 1 + nq + ji.motor_dof].copy(),
                      s[:, 1 + ji.link_qpos].copy(), s[:, 1 + nq + ji.link_dof].copy(),
-                     model.opt.timestep, *ji.step_over_inertia(model))
+                     *ji.steps(model))
 
     def __call__(self) -> float:
         self.args[1][:] = 0.0

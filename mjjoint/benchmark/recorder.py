@@ -107,6 +107,7 @@ def record(arm: ArmSpec, joint: JointParams, program: LabProgram = LabProgram(),
     cols = {k: np.empty(n) for k in ("t", "u", "q", "theta", "tau")}
     q_prev, v_filt = 0.0, 0.0
     adr = int(model.plugin_stateadr[ji.instance])
+    steps = ji.steps(model)
     for i in range(n):
         q = quantise(np.array(data.qpos[ji.motor_qpos]), sensors.resolver_bits).item()
         th = quantise(np.array(data.qpos[ji.link_qpos]), sensors.encoder_bits).item()
@@ -116,8 +117,7 @@ def record(arm: ArmSpec, joint: JointParams, program: LabProgram = LabProgram(),
         u = min(max(u, -controller.u_max), controller.u_max)
         st = data.plugin_state[adr:adr + NSTATE].copy()
         joint_catch_up(ji.block, st, data.qpos[ji.motor_qpos], data.qvel[ji.motor_dof],
-                       data.qpos[ji.link_qpos], data.qvel[ji.link_dof], data.time, model.opt.timestep,
-                       *ji.step_over_inertia(model))
+                       data.qpos[ji.link_qpos], data.qvel[ji.link_dof], data.time, *steps)
         tau = transmitted(ji.block, st, data.qpos[ji.motor_qpos], data.qvel[ji.motor_dof],
                           data.qpos[ji.link_qpos], data.qvel[ji.link_dof])
         cols["t"][i], cols["u"][i], cols["q"][i], cols["theta"][i] = data.time, u, q, th

@@ -18,6 +18,7 @@ from ..physics.load import bearing_friction
 from ..physics.ripple import ripple_torque
 from ..physics.stribeck import static_friction, static_friction_slope
 from ..physics.transmission import engaged, transmission_stiffness, transmission_torque
+from ..joint import STABILITY_BUDGET
 from ..physics.twosep import twosep_step
 from .layout import (ASYM, AT, B, BACKLASH, BW_A, BW_BETA, BW_GAMMA, BW_N, DAMP, FC, FKIND, FO, FOT,
                      FP, FRICTION_2SEP, FRICTION_STATIC, FS, GEAR, HYST, K, K1, K2, K3, L_FC, L_VEPS,
@@ -33,12 +34,19 @@ def transmitted(blk, st, q, wq, theta, wtheta):
                                blk[K1], blk[K2], blk[K3], blk[DAMP], blk[BACKLASH])
 
 
-# Largest k h^2 / J an explicit spring is given (omega h = sqrt(3); the stability check's margin).
-STABLE_KR = 3.0
+# Largest k h^2 / J an explicit spring is given: the stability check's budget (omega h = sqrt(3)).
+STABLE_KR = 2.0 * STABILITY_BUDGET
 
 
 @kernel
-def stiffness_limit(blk, st, t, q, wq, theta, wtheta, h, hjm, hjl):
+def rate_step(n, h, hj, hjl):
+    """h^2 / J_rel of the deflection rate q'/N - theta': motor (through the gear) and link in
+    series, from their h/J."""
+    return h * (hj / (n * n) + hjl)
+
+
+@kernel
+def stiffness_limit(blk, st, t, de, in_gap, wq, wtheta, h, hj, hjl):
     """Torque that keeps the transmission spring stable at the step beyond its rated deflection.
 
     An explicit spring of tangent stiffness k between inertias with h^2 / J_rel = r diverges
@@ -47,14 +55,13 @@ def stiffness_limit(blk, st, t, q, wq, theta, wtheta, h, hjm, hjl):
     rate the step ends with, under the spring's torque ``t`` and the other torques on the
     deflection that the last step implies (``st[FOT]``; unknown: those balancing ``t``). Stable
     for any k, zero below the limit (ordinary runs are untouched), and zero as h -> 0, where
-    k_lim grows as 1/h^2.
+    k_lim grows as 1/h^2. ``de``: the engaged deflection; ``in_gap``: the teeth are apart.
     """
     if st[FOT] != st[FOT]:
         st[FOT] = t
     n = blk[GEAR]
-    r = h * (hjm / (n * n) + hjl)
-    de = engaged(q / n - theta, blk[BACKLASH])
-    if r <= 0.0 or (de == 0.0 and blk[BACKLASH] > 0.0):
+    r = rate_step(n, h, hj, hjl)
+    if r <= 0.0 or in_gap:
         return 0.0
     a = blk[BW_A] if blk[HYST] != 0.0 else 1.0
     excess = transmission_stiffness(de, st[X], blk[MU], blk[K1], blk[K2], blk[K3], a) - STABLE_KR / r
@@ -100,8 +107,10 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     """
     n = blk[GEAR]
     t = transmitted(blk, st, q, wq, theta, wtheta)
-    t += stiffness_limit(blk, st, t, q, wq, theta, wtheta, h, hj, hjl)
-    d_eng = blk[DAMP] if (blk[BACKLASH] == 0.0 or engaged(q / n - theta, blk[BACKLASH]) != 0.0) else 0.0
+    de = engaged(q / n - theta, blk[BACKLASH])
+    in_gap = de == 0.0 and blk[BACKLASH] > 0.0  # no torque passes, none of it damped
+    t += stiffness_limit(blk, st, t, de, in_gap, wq, wtheta, h, hj, hjl)
+    d_eng = 0.0 if in_gap else blk[DAMP]
     # Motor: -T/N - F + ripple. 2SEP's z1 is a position state (no slope); its lag is a one-sided
     # damper, decided on the velocity the step would reach without it.
     kind = blk[FKIND]
@@ -179,10 +188,11 @@ def joint_catch_up(blk, st, q, wq, theta, wtheta, t, h, hj, hjl):
     at = st[AT]
     if at == at and at != t:
         joint_advance(blk, st, q, wq, theta, wtheta, h)
-        st[FO] = (wq - st[WP]) / hj - st[FP] if hj > 0.0 else 0.0
+        dwq = wq - st[WP]
+        st[FO] = dwq / hj - st[FP] if hj > 0.0 else 0.0
         n = blk[GEAR]
-        r = h * (hj / (n * n) + hjl)
-        st[FOT] = ((wq - st[WP]) / n - (wtheta - st[WPL])) * h / r + st[TP] if r > 0.0 else 0.0
+        r = rate_step(n, h, hj, hjl)
+        st[FOT] = (dwq / n - (wtheta - st[WPL])) * h / r + st[TP] if r > 0.0 else 0.0
     elif at != at:
         st[FO] = np.nan
         st[FOT] = np.nan

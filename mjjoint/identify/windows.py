@@ -324,7 +324,7 @@ class Predictor:
         nw, ns, nx = full.shape
         flat = full.reshape(nw * ns, nx)
         st, (q, qd, th, thd) = _settled(model, ji, flat)
-        tau, _, _ = joint_traces(ji.block, st, q, qd, th, thd, model.opt.timestep, *ji.step_over_inertia(model))
+        tau, _, _ = joint_traces(ji.block, st, q, qd, th, thd, *ji.steps(model))
         shape = (nw, ns)
         # Copies: views of q and theta would keep all of ``full`` (every state column) alive.
         return {"q": q.reshape(shape).copy(), "theta": th.reshape(shape).copy(),
@@ -491,7 +491,7 @@ def _settled(model, ji, flat: np.ndarray):
     th = np.zeros_like(q) if grounded else flat[:, 1 + ji.link_qpos]
     thd = np.zeros_like(q) if grounded else flat[:, 1 + model.nq + ji.link_dof]
     st = settled_states(ji.block, np.ascontiguousarray(flat[:, ji.state_start:ji.state_start + NSTATE]),
-                        flat[:, 0], q, qd, th, thd, model.opt.timestep, *ji.step_over_inertia(model))
+                        flat[:, 0], q, qd, th, thd, *ji.steps(model))
     return st, (q, qd, th, thd)
 
 
