@@ -55,7 +55,7 @@ from bench_step import (  # the shared measurement
 
 from mjjoint.assets import build_arm, load_model
 from mjjoint.benchmark.cases import GEAR_RATIO, make_case
-from mjjoint.benchmark.recorder import LINK_ENCODER_BITS, RESOLVER_BITS, LabProgram, lsb, record
+from mjjoint.rehearse import LINK_ENCODER_BITS, RESOLVER_BITS, LabProgram, lsb, record
 from mjjoint.benchmark.score import run_case
 from mjjoint.diagnosis.loop import DiagnoseOptions, diagnose
 from mjjoint.identify import windows
@@ -125,7 +125,7 @@ def peak_rss_mb() -> float:
 
 
 def lab_recording(truth: Structure, duration: float, seed: int = CASE_SEED) -> Recording:
-    """Closed-loop recording of ``truth`` with the lab's quantised sensors (benchmark.recorder)."""
+    """Closed-loop recording of ``truth`` with the lab's quantised sensors (mjjoint.rehearse)."""
     cols = record(*truth.model_params(), LabProgram(duration=duration, seed=seed))
     return Recording(t=cols["t"], u=cols["u"], q=cols["q"], theta=cols["theta"], tau=cols["tau"],
                      gear_ratio=GEAR_RATIO, meta={})

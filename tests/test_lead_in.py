@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mjjoint.benchmark.cases import GEAR_RATIO, make_case
-from mjjoint.benchmark.recorder import LabProgram, record
+from mjjoint.rehearse import LabProgram, record
 from mjjoint.identify.fit import fit
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import REVERSAL_BAND, Measured, Predictor, WindowDesign, lead_samples

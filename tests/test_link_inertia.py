@@ -12,7 +12,7 @@ import pytest
 from mjjoint.assets import ArmSpec
 from mjjoint.assets.drive import DriveSpec
 from mjjoint.benchmark.cases import BASE, GEAR_RATIO, NOMINAL, make_case
-from mjjoint.benchmark.recorder import LabProgram, record
+from mjjoint.rehearse import LabProgram, record
 from mjjoint.datasets.bam import ServoArm
 from mjjoint.identify.effects import base_params
 from mjjoint.identify.fit import fit

@@ -13,7 +13,7 @@ from ..identify.structure import Structure
 from ..identify.windows import Measured, Predictor, WindowDesign
 from ..recordings import Recording, read_recording, write_recording
 from .cases import CONCEALED, GEAR_RATIO, NOMINAL, Case, make_case
-from .recorder import LabProgram, record
+from ..rehearse import LabProgram, record
 
 
 @dataclass
