@@ -17,6 +17,7 @@ from ..modelfile import ModelFile, from_section
 from ..params import check
 from ..report.output import DESTINATION_RULE, check_destination, staged_files
 from ..sim import FULL, Simulator, Trace
+from . import closed_loop
 from .chunked import simulate_chunked
 from .errors import CliError
 from .memory import HEADROOM, check_fits
@@ -33,6 +34,9 @@ examples:
   mjjoint simulate --excitation chirp --param f_start=20 --param sweep=log --spawn
   mjjoint simulate --model examples/stiff_linear.yaml --excitation multisine --seed 3
   mjjoint simulate --excitation file --file torque.csv --csv response.csv
+  mjjoint simulate --controller pd --reference lab --duration 10 --csv rec.csv   then: mjjoint diagnose rec.csv
+  mjjoint simulate --controller pid --on link --gains kp=20,kd=0.3,ki=20 --limit 1 --reference step
+  mjjoint simulate --controller pd --reference ref.csv --bits q=12,theta=16 --noise tau=0.1 --delay 2
 
 outputs appear only when complete: each is written as NAME.partial-<pid>.EXT beside it and
 renamed once all are written (an interrupt or error removes them). Output paths: """ + DESTINATION_RULE + """.
@@ -66,7 +70,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     e.add_argument("--file", type=Path, metavar="CSV", help="CSV with columns t and u, for --excitation file")
     e.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
                    help="set an excitation field (repeatable), e.g. f_start=20, sweep=log, width=0.002")
-    e.add_argument("--seed", type=int, help="random seed of the multisine phases")
+    e.add_argument("--seed", type=int, help="random seed of the multisine phases (closed loop: and of the lab reference's step levels)")
+    closed_loop.register_options(p)
     o = p.add_argument_group("output (without any of these: trace.csv, trace.png and trace.rrd in --out)")
     o.add_argument("--csv", type=Path, metavar="PATH", help="CSV with header t,u,q,theta,tau")
     o.add_argument("--plot", type=Path, metavar="PATH", help="PNG of q/N and theta, delta, tau, friction")
@@ -91,6 +96,14 @@ def excitation_from_args(args: argparse.Namespace) -> tuple[str, Any]:
     """(name, excitation) the options describe; the excitation validated by its own dataclass."""
     name = args.excitation or ("file" if args.file is not None else DEFAULT_EXCITATION)
     cls = EXCITATIONS[name]
+    excitation = signal_from_args(f"--excitation {name}", cls, args, (
+        ("--amplitude", "amplitude", args.amplitude),
+        ("--file", "path", None if args.file is None else str(args.file)), ("--seed", "seed", args.seed)))
+    return name, excitation
+
+
+def signal_from_args(what: str, cls: type, args: argparse.Namespace, flags) -> Any:
+    """``cls`` (option ``what``) built from ``--param KEY=VALUE`` and ``flags`` ((option, field, value or None), ...)."""
     fields = excitation_fields(cls)
     values: dict[str, Any] = {}
     for item in args.param:
@@ -99,16 +112,14 @@ def excitation_from_args(args: argparse.Namespace) -> tuple[str, Any]:
         if not sep or not key:
             raise CliError(f"--param {item!r} must be KEY=VALUE")
         values[key] = _parse_value(key, text.strip(), fields.get(key))
-    for flag, key, value in (("--amplitude", "amplitude", args.amplitude),
-                             ("--file", "path", None if args.file is None else str(args.file)),
-                             ("--seed", "seed", args.seed)):
+    for flag, key, value in flags:
         if value is not None:
             if key not in fields:
-                raise CliError(f"{flag} does not apply to --excitation {name} (its fields: {', '.join(fields)})")
+                raise CliError(f"{flag} does not apply to {what} (its fields: {', '.join(fields)})")
             values[key] = value
     if cls is FromFile and "path" not in values:
         raise CliError("--excitation file needs --file PATH")
-    return name, from_section(cls, values, name)
+    return from_section(cls, values, what.split()[-1])
 
 
 def output_paths(args: argparse.Namespace) -> dict[str, Path]:
@@ -177,8 +188,10 @@ def write_outputs(paths: dict[str, Path], traces: list[Trace], sim: Simulator, n
 
 def run(args: argparse.Namespace) -> int:
     model = read_model_file(args.model) if args.model is not None else ModelFile()
-    name, excitation = excitation_from_args(args)
     rate = model.sample_rate if args.rate is None else check("--rate", args.rate, 0.0, lo_open=True)
+    if closed_loop.wanted(args):
+        return closed_loop.run(args, model, rate)
+    name, excitation = excitation_from_args(args)
     duration = args.duration
     if duration is None:
         duration = excitation.duration if isinstance(excitation, FromFile) else DEFAULT_DURATION

@@ -32,7 +32,8 @@ def is_canonical(name: str) -> bool:
     return name in SIGNALS or _PER_JOINT.fullmatch(name) is not None
 
 
-def _pairs(text: str, option: str, example: str) -> Iterator[tuple[str, str]]:
+def name_value_pairs(text: str, option: str, example: str) -> Iterator[tuple[str, str]]:
+    """The name=value items of a comma list such as an option's value, each name once."""
     if not text.strip():
         raise RecordingError(f"{option}: empty; expected e.g. {example}")
     seen: set[str] = set()
@@ -80,12 +81,12 @@ def parse_column_map(text: str) -> dict[str, str]:
 
     In .mat and .npz files a source may pick a column (data[:, 3]) or a struct field (rec.q).
     """
-    return check_column_map(dict(_pairs(text, "--columns", "t=time,u=vir,q=qm,theta=qm")), "--columns")
+    return check_column_map(dict(name_value_pairs(text, "--columns", "t=time,u=vir,q=qm,theta=qm")), "--columns")
 
 
 def parse_scales(text: str) -> dict[str, float]:
     """Parse 'q=deg,theta=deg,u=2.5' into {canonical: multiplier}; 'deg' means pi/180."""
-    pairs = dict(_pairs(text, "--scales", "q=deg,theta=deg,u=2.5"))
+    pairs = dict(name_value_pairs(text, "--scales", "q=deg,theta=deg,u=2.5"))
     # Words other than 'deg' go through float() so that check_scales names them.
     return check_scales({k: DEG if v.lower() == "deg" else v for k, v in pairs.items()}, "--scales")
 

@@ -15,6 +15,10 @@ from ..params import check
 KINDS = ("pd", "pid")
 SIDES = ("motor", "link")
 U_MAX = 1.3  # [N m] rated torque of the chapter's 400 W motor
+# Default (kp, kd, ki) per side, for the shipped arm (160:1): on the motor ~15 Hz bandwidth; on
+# the link, across the elastic gear, half the motor loop's bandwidth (kp 40 already rings);
+# ki removes the offset gravity leaves within ~1 s.
+GAINS = {"motor": (0.5, 7.5e-3, 2.0), "link": (20.0, 0.3, 20.0)}
 
 
 @dataclass(frozen=True)
@@ -40,6 +44,14 @@ class Controller:
             raise ValueError(f"ki={self.ki:g} needs the pid controller (a pd has no integral)")
         check("velocity_cutoff", self.velocity_cutoff, 0.0, lo_open=True)
         check("u_max", self.u_max, 0.0, lo_open=True)
+
+    @classmethod
+    def default(cls, kind: str = "pd", on: str = "motor", **settings) -> "Controller":
+        """The side's default gains (``GAINS``; ki only for a pid), overridden by ``settings``."""
+        if on not in GAINS:
+            raise ValueError(f"controller side {on!r} is not known (allowed: {', '.join(SIDES)})")
+        kp, kd, ki = GAINS[on]
+        return cls(**{"kind": kind, "on": on, "kp": kp, "kd": kd, "ki": ki if kind == "pid" else 0.0, **settings})
 
     def describe(self) -> dict:
         return asdict(self)

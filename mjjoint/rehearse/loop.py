@@ -52,6 +52,10 @@ def run_loop(model: mujoco.MjModel, theta_ref: np.ndarray, controller: Controlle
     ji = joints[0]
     if ji.actuator < 0:
         raise ValueError("the joint has no actuator on its motor joint")
+    if model.actuator_ctrllimited[ji.actuator]:  # MuJoCo would clamp silently: the log would lie
+        top = float(np.min(np.abs(model.actuator_ctrlrange[ji.actuator]))) * ji.k_m
+        if controller.u_max > top:
+            raise ValueError(f"limit {controller.u_max:g} N m is outside the motor's range (0, {top:g}] N m")
     sub = int(round(1.0 / (rate * model.opt.timestep)))
     if sub < 1 or abs(sub * model.opt.timestep * rate - 1.0) > 1e-9:
         raise ValueError(f"rate={rate:g} Hz must be the model rate 1/timestep={1 / model.opt.timestep:g} Hz "
