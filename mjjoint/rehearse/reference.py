@@ -72,12 +72,12 @@ class ReferenceFile:
     angle) [rad], zero-order held as ``excitation.FromFile`` holds a torque."""
 
     def __init__(self, path: str | Path):
-        header = read_csv_table(Path(path)).header if Path(path).is_file() else ()
+        header = read_csv_table(Path(path)).names
         found = [c for c in FILE_COLUMNS if c in header]
-        if len(found) != 1 and Path(path).is_file():
+        if len(found) != 1:
             raise ValueError(f"{path}: a reference file needs exactly one of the columns "
                              f"{' or '.join(FILE_COLUMNS)} beside t (header: {','.join(header)})")
-        self.source = FromFile(path, column=found[0] if found else "q_ref")
+        self.source = FromFile(path, column=found[0])
         self.side = FILE_COLUMNS[self.source.column]
 
     @property
