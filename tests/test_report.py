@@ -95,20 +95,39 @@ def test_worst_signal_treats_nan_as_worst():
     assert worst_signal({"theta": 9.0, "tau": 0.3}, ("q", "tau")) == "tau"
 
 
-def test_rrd_series_equal_the_windows_in_time_order(tmp_path):
-    cmp = comparison(windows=6, n=50)
-    path = write_rrd(tmp_path / "t.rrd", cmp, ["before", "after"], "test")
+def _scalars(path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """entity -> (time [ns], values) of every scalar series in an .rrd."""
     got = {}
     for chunk in RrdReader(path).stream():
         b = chunk.to_record_batch()
         if "Scalars:scalars" in b.schema.names:
             got[chunk.entity_path] = (b.column("sim_time").cast("int64").to_numpy(),
                                       np.array([v[0] for v in b.column("Scalars:scalars").to_pylist()]))
+    return got
+
+
+def test_rrd_series_equal_the_windows_in_time_order(tmp_path):
+    cmp = comparison(windows=6, n=50)
+    path = write_rrd(tmp_path / "t.rrd", cmp, ["before", "after"], "test")
+    got = _scalars(path)
     t_ns, tau = got["/before/tau"]
     assert np.array_equal(t_ns, np.round(cmp.t.ravel() * 1e9).astype(np.int64))
     assert np.allclose(tau, cmp.predicted["before"]["tau"].ravel())
     assert np.array_equal(got["/windows/heldout"][1], np.repeat(cmp.heldout.astype(float), 50))
     assert RrdReader(path).blueprints()
+
+
+def test_rrd_residuals_and_located_windows(tmp_path):
+    cmp = comparison(windows=6, n=50)
+    t = cmp.t.ravel()
+    window = [t[60], t[140], 0.7]
+    got = _scalars(write_rrd(tmp_path / "t.rrd", cmp, ["before", "after"], "test", {"tau": [window]}))
+    for label in ("before", "after"):
+        assert np.allclose(got[f"/residual/{label}/tau"][1], cmp.residual(label, "tau").ravel())
+    mark, sample = got["/located/tau"][1], np.arange(len(t))
+    inside = (sample >= 60) & (sample <= 140)
+    assert np.all(mark[inside] == np.abs(cmp.residual("before", "tau")).max()) and np.all(mark[~inside] == 0)
+    assert not np.any(got["/located/q"][1])  # nothing located in q
 
 
 def test_staged_output_appears_only_when_complete(tmp_path):

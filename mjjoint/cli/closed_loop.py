@@ -149,7 +149,7 @@ def sidecar(args: argparse.Namespace, controller: Controller, sensors: Sensors, 
 
 
 def run(args: argparse.Namespace, model: ModelFile, rate: float) -> int:
-    from .simulate import DEFAULT_DURATION, check_memory, output_paths, write_outputs
+    from .simulate import DEFAULT_DURATION, check_memory, finish, output_paths, write_outputs
 
     if args.excitation is not None or args.file is not None:
         raise CliError("--excitation and --file drive the motor open loop; with --controller give --reference")
@@ -166,7 +166,7 @@ def run(args: argparse.Namespace, model: ModelFile, rate: float) -> int:
     gear_ratio = sim.joints[0].gear_ratio
     theta_ref = on_side(reference.sample(rate, duration), reference.side, "link", gear_ratio)
     views = {kind: path for kind, path in outputs.items() if kind in ("plot", "rrd")}
-    loop = run_loop(sim.model, theta_ref, controller, sensors, rate, keep_states=bool(views) or args.spawn)
+    loop = run_loop(sim.model, theta_ref, controller, sensors, rate, keep_states=bool(views))
     cols = loop.columns
     what = f"{controller.kind} on the {controller.on}, {reference.name} reference"
     with staged_files(outputs.values()) as partial:
@@ -174,15 +174,14 @@ def run(args: argparse.Namespace, model: ModelFile, rate: float) -> int:
             write_recording(partial[outputs["csv"]], Recording(**cols, gear_ratio=gear_ratio))
             write_json(partial[outputs["sidecar"]], sidecar(args, controller, sensors, reference, rate, duration,
                                                             gear_ratio, outputs["csv"].name))
-        if views or args.spawn:
+        if views:
             trace = sim.traces(loop.states, cols["u"])[0]
             write_outputs({kind: partial[path] for kind, path in views.items()}, [trace], sim,
-                          f"closed loop {reference.name}", what, args.spawn)
+                          f"closed loop {reference.name}", what)
     measured = on_side(cols["q"] if controller.on == "motor" else cols["theta"], controller.on, "link", gear_ratio)
     error = theta_ref - measured
     print(f"simulated {len(cols['t']) / rate:g} s in closed loop ({what}) at {rate:g} Hz: tracking error "
           f"rms {np.sqrt(np.mean(error ** 2)):.3g} rad at the link (sensed {controller.on}), "
           f"max |u| {np.abs(cols['u']).max():.3g} N m (limit {controller.u_max:g})")
-    if outputs:
-        print("wrote " + ", ".join(str(p) for p in outputs.values()))
+    finish(outputs, args.spawn)
     return 0

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +20,7 @@ from ..report.output import DESTINATION_RULE, check_destination, staged_files
 from ..sim import FULL, Simulator, Trace
 from . import closed_loop
 from .chunked import simulate_chunked
-from .errors import CliError
+from .errors import PROG, CliError
 from .memory import HEADROOM, check_fits
 
 DEFAULT_OUT = Path("out/simulate")
@@ -76,7 +77,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     o.add_argument("--csv", type=Path, metavar="PATH", help="CSV with header t,u,q,theta,tau")
     o.add_argument("--plot", type=Path, metavar="PATH", help="PNG of q/N and theta, delta, tau, friction")
     o.add_argument("--rrd", type=Path, metavar="PATH", help="Rerun recording of every signal and the arm in 3D")
-    o.add_argument("--spawn", action="store_true", help="stream to a newly spawned Rerun viewer")
+    o.add_argument("--spawn", action="store_true",
+                   help="open the Rerun recording in the viewer (written to --rrd, else to --out/trace.rrd); "
+                        "without a display, one line says how to view it elsewhere")
     o.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR", help=f"default: {DEFAULT_OUT}")
     p.set_defaults(handler=run)
 
@@ -132,6 +135,8 @@ def output_paths(args: argparse.Namespace) -> dict[str, Path]:
     if not any(chosen.values()) and not args.spawn:
         chosen = {"csv": args.out / "trace.csv", "plot": args.out / "trace.png", "rrd": args.out / "trace.rrd"}
         option = dict.fromkeys(chosen, "--out")
+    elif args.spawn and args.rrd is None:  # the viewer opens a finished file
+        chosen["rrd"], option["rrd"] = args.out / "trace.rrd", "--out"
     out = {kind: path for kind, path in chosen.items() if path is not None}
     for kind, path in out.items():
         if path.is_dir():
@@ -166,8 +171,7 @@ def _summary(name: str, excitation, trace: Trace, rate: float) -> str:
             f"max |delta| {1e3 * np.abs(trace.delta).max():.3g} mrad, max |tau| {np.abs(trace.tau).max():.3g} N m")
 
 
-def write_outputs(paths: dict[str, Path], traces: list[Trace], sim: Simulator, name: str, excitation,
-                  spawn: bool) -> None:
+def write_outputs(paths: dict[str, Path], traces: list[Trace], sim: Simulator, name: str, excitation) -> None:
     """Write the traces to ``paths`` (kind -> path: csv, plot or plot1, plot2, ..., rrd)."""
     many = len(traces) > 1
     if "csv" in paths:
@@ -180,10 +184,21 @@ def write_outputs(paths: dict[str, Path], traces: list[Trace], sim: Simulator, n
         from .plot import plot_trace  # matplotlib only when a plot is asked for
         for j, (trace, path) in enumerate(zip(traces, plots), start=1):
             plot_trace(trace, path, title=f"mjjoint simulate: {excitation}" + (f", joint {j}" if many else ""))
-    if "rrd" in paths or spawn:
+    if "rrd" in paths:
         from ..viz.rerun_log import log_traces  # rerun only when asked for
         log_traces({f"joint{j}": tr for j, tr in enumerate(traces, start=1)} if many else traces[0],
-                   model=sim.model, recording_name=f"simulate {name}", rrd_path=paths.get("rrd"), spawn=spawn)
+                   model=sim.model, recording_name=f"simulate {name}", rrd_path=paths["rrd"])
+
+
+def finish(outputs: dict[str, Path], spawn: bool) -> None:
+    """List the written outputs; with ``spawn``, open the .rrd or say how to view it elsewhere."""
+    if outputs:
+        print("wrote " + ", ".join(str(p) for p in outputs.values()))
+    if spawn:
+        from ..viz.viewer import how_to_view, open_viewer
+        problem = open_viewer(outputs["rrd"])
+        if problem is not None:
+            print(f"{PROG}: {problem}: {how_to_view(outputs['rrd'])}", file=sys.stderr)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -205,10 +220,8 @@ def run(args: argparse.Namespace) -> int:
         path = outputs.pop("plot")
         outputs.update({f"plot{j}": path.with_stem(f"{path.stem}{j}") for j in range(1, len(traces) + 1)})
     with staged_files(outputs.values()) as partial:
-        write_outputs({kind: partial[path] for kind, path in outputs.items()}, traces, sim, name, excitation,
-                      args.spawn)
+        write_outputs({kind: partial[path] for kind, path in outputs.items()}, traces, sim, name, excitation)
     for j, trace in enumerate(traces, start=1):
         print((f"joint {j}: " if many else "") + _summary(name, excitation, trace, rate))
-    if outputs:
-        print("wrote " + ", ".join(str(p) for p in outputs.values()))
+    finish(outputs, args.spawn)
     return 0

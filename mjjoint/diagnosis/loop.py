@@ -65,6 +65,7 @@ from ..identify.effects import EFFECTS, base_params, plant_effects
 from ..identify.fit import FitResult, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
+from .clock import ScreenClock
 from .features import operating_conditions, reversal_proximity
 from .locate import REVERSAL_WINDOW_S, locate
 
@@ -261,16 +262,18 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     history = [current]
     steps: list[Step] = []
     rejected = ""  # why the last round's best candidate was not added, for the verdict
-    for _ in range(options.max_rounds):
+    clock = ScreenClock(options.max_rounds)
+    for k in range(1, options.max_rounds + 1):
         where = residual_location(predictor, current.structure)
-        ref, screened = _screen(predictor, current, where, options, say)
+        clock.round = k
+        ref, screened = _screen(predictor, current, where, options, say, clock)
         if not screened:
             break
         choice, screen = _decide(predictor, ref, screened, options), "stand-ins held"
         if choice.only_inconsistent and options.free_all:
             say(f"  best candidate {choice.best} fails only the rank test ({choice.failed[0]}); screening "
                 "again with every parameter free, from the model refitted")
-            ref, screened = _screen(predictor, current, where, options, say, free_all=True)
+            ref, screened = _screen(predictor, current, where, options, say, clock, free_all=True)
             if ref.cost_test < current.cost_test:  # the same structure, fitted further
                 current = history[-1] = ref
                 initial = initial if steps else ref
@@ -350,7 +353,7 @@ def _robust(predictor: Predictor, result: FitResult, options: DiagnoseOptions, p
 
 
 def _screen(predictor: Predictor, current: FitResult, where: dict, options: DiagnoseOptions, say,
-            free_all: bool = False) -> tuple[FitResult, dict[str, tuple[float, FitResult]]]:
+            clock: ScreenClock, free_all: bool = False) -> tuple[FitResult, dict[str, tuple[float, FitResult]]]:
     """(the fit candidates are held against, {effect: (held-out cost, fit)}) of one screening.
 
     Held stand-ins (default): each candidate frees ``screened_params`` and is held against the
@@ -364,15 +367,21 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         ref = fit(predictor, current.structure, max_iter=options.fit_iter)
         say(f"  reference, the model refitted: held-out cost {current.cost_test:.4g} -> {ref.cost_test:.4g}")
     screened: dict[str, tuple[float, FitResult]] = {}
-    for name in candidates_for(ref.structure, options.candidates):
-        for values, settings in _candidate_variants(name, where):
-            trial = ref.structure.with_effect(name, values, settings)
-            freed = None if free_all else screened_params(name, ref.structure)
-            res = fit(predictor, trial, freed, max_iter=options.screen_iter)
-            if name not in screened or res.cost_test < screened[name][0]:
-                screened[name] = (res.cost_test, res)
-            label = f"{name} {settings}" if settings else name
-            say(f"  screened {label}: held-out cost {ref.cost_test:.4g} -> {res.cost_test:.4g}")
+    trials = [(name, values, settings) for name in candidates_for(ref.structure, options.candidates)
+              for values, settings in _candidate_variants(name, where)]
+    say(f"round {clock.round} of {clock.rounds}: screening {len(trials)} candidate fits"
+        + (" with every parameter free" if free_all else ""))
+    for i, (name, values, settings) in enumerate(trials, 1):
+        start = time.perf_counter()
+        trial = ref.structure.with_effect(name, values, settings)
+        freed = None if free_all else screened_params(name, ref.structure)
+        res = fit(predictor, trial, freed, max_iter=options.screen_iter)
+        clock.record(time.perf_counter() - start)
+        if name not in screened or res.cost_test < screened[name][0]:
+            screened[name] = (res.cost_test, res)
+        label = f"{name} {settings}" if settings else name
+        say(f"  screened {label}: held-out cost {ref.cost_test:.4g} -> {res.cost_test:.4g} "
+            f"({clock.status(i, len(trials))})")
     return ref, screened
 
 

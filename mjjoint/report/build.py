@@ -48,7 +48,8 @@ def write_diagnosis(folder: Path, predictor: Predictor, diag: Diagnosis, source:
         files.append(plot_evidence(step.effect, cmp, labels[k - 1], labels[k], step.where,
                                    step_values(data["steps"][k - 1], final), path, signal))
         step_images.append(path.name)
-    files.append(write_rrd(folder / "traces.rrd", cmp, labels, f"diagnose {source}"))
+    located_all = {s: loc.get("windows", []) for s, loc in first_where.get("signals", {}).items()}
+    files.append(write_rrd(folder / "traces.rrd", cmp, labels, f"diagnose {source}", located_all))
     index = folder / "index.html"
     run = {**run, "files": sorted([p.name for p in files] + [index.name, MARKER])}
     images = {"windows": "heldout_windows.png", "residual": "residual.png", "steps": step_images}

@@ -18,6 +18,7 @@ import rerun.blueprint as rrb
 
 from ..coupling.layout import STATE_NAMES
 from ..sim import Trace
+from .viewer import display_problem
 
 APP_ID = "mjjoint"
 TIMELINE = "sim_time"
@@ -152,6 +153,9 @@ def log_traces(traces: Mapping[str, Trace] | Trace, *, model: mujoco.MjModel | N
 
     rec = rr.RecordingStream(APP_ID)
     sinks = []
+    if spawn and display_problem() is not None:
+        raise OSError(f"cannot spawn the Rerun viewer: {display_problem()}; write an .rrd (rrd_path) and "
+                      f"open it with 'rerun FILE' on a machine with a display")
     if spawn:
         try:
             rec.spawn(connect=False)
