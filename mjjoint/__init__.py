@@ -25,6 +25,7 @@ from .physics.stribeck import StaticFriction
 from .physics.transmission import Transmission
 from .physics.twosep import TwoSEP
 from .recordings import MultiRecording, Recording, RecordingError, read_recording, write_recording
+from .rehearse import Controller, LabProgram, Sensors, run_loop
 from .sim import Simulator, Trace, simulate
 from .viz import log_traces
 
@@ -35,9 +36,9 @@ register()
 __version__ = "0.1.0"
 
 __all__ = [
-    "ASSETS_DIR", "ArmSpec", "BoucWen", "DriveSpec", "Chirp", "EXCITATIONS", "FromFile", "GROUND", "Impulse", "JointParams",
-    "LoadFriction", "ModelFile", "MultiRecording", "Multisine", "Recording", "RecordingError",
+    "ASSETS_DIR", "ArmSpec", "BoucWen", "Controller", "DriveSpec", "Chirp", "EXCITATIONS", "FromFile", "GROUND", "Impulse", "JointParams",
+    "LabProgram", "LoadFriction", "ModelFile", "MultiRecording", "Multisine", "Recording", "RecordingError",
     "Simulator", "StaticFriction", "Step", "TorqueRipple", "Trace", "Transmission", "TwoSEP",
     "build_arm", "build_drive", "dump_model_file", "load_model", "load_model_file", "log_traces", "read_recording",
-    "register", "register_model", "scene_path", "simulate", "stable_timestep", "write_recording",
+    "register", "register_model", "run_loop", "scene_path", "Sensors", "simulate", "stable_timestep", "write_recording",
 ]

@@ -41,8 +41,9 @@ def register_options(p: argparse.ArgumentParser) -> None:
                    help="track --reference with this position controller; the CSV is what the sensors "
                         "logged, NAME.json beside it says how it was made")
     c.add_argument("--on", choices=SIDES, help="angle the controller closes on (default motor)")
-    c.add_argument("--gains", metavar="LIST", help="kp=..,kd=..,ki=.. [N m per rad, rad/s, rad s of the "
-                   "controlled angle]; default on the motor 0.5,7.5e-3 (ki 2), on the link 20,0.3 (ki 20)")
+    c.add_argument("--gains", metavar="LIST", help="kp=..,kd=..,ki=.. in N m per rad, rad/s, rad s of the "
+                   "controlled angle; default on the motor kp=0.5,kd=7.5e-3 (pid: ki=2), on the link "
+                   "kp=20,kd=0.3 (pid: ki=20)")
     c.add_argument("--limit", type=float, metavar="NM", help=f"saturation of u [N m] (default {U_MAX:g})")
     c.add_argument("--reference", metavar="KIND|CSV",
                    help=f"{', '.join(REFERENCES)} (default lab: the chapter's chirp, gravity sweep and steps) "

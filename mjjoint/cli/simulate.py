@@ -52,8 +52,9 @@ excitation fields (--param KEY=VALUE):
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "simulate", help="simulate the joint under a motor-torque excitation",
-        description="Simulate the elastic joint driven by a motor torque u [N m] and write the traces\n"
-                    "(CSV header t,u,q,theta,tau in SI units; q motor side, theta link side).",
+        description="Simulate the elastic joint driven by a motor torque u [N m], or (--controller) in closed\n"
+                    "loop as a lab records it, and write the traces (CSV header t,u,q,theta,tau in SI units;\n"
+                    "q motor side, theta link side).",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     m = p.add_argument_group("model")
     m.add_argument("--model", type=Path, metavar="PATH",
