@@ -119,6 +119,7 @@ def test_the_same_seed_gives_the_same_bytes(tmp_path):
     (["--controller", "pd", "--gains", "kq=1"], "unknown name 'kq'"),
     (["--controller", "pd", "--gains", "ki=1"], "needs the pid controller"),
     (["--controller", "pd", "--bits", "q=40"], "resolver_bits=40 is outside the allowed range"),
+    (["--controller", "pd", "--bits", "theta=inf"], "must be a whole number of bits"),
     (["--controller", "pd", "--excitation", "step"], "with --controller give --reference"),
     (["--controller", "pd", "--model", "arm3.xml"], "drives one joint; the model has 3"),
 ])

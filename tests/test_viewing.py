@@ -133,7 +133,7 @@ def test_a_viewer_that_cannot_start_gets_the_same_one_line(tmp_path, monkeypatch
 
 def test_a_viewer_that_keeps_running_is_left_open(tmp_path, monkeypatch):
     monkeypatch.setenv("DISPLAY", ":1")
-    monkeypatch.setattr(viewer, "VIEWER", (sys.executable, "-c", "import time; time.sleep(5)"))
+    monkeypatch.setattr(viewer, "VIEWER", (sys.executable, "-c", "import time; time.sleep(2)"))
     assert viewer.open_viewer(tmp_path / "x.rrd", wait=0.5) is None
 
 

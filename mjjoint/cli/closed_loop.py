@@ -93,7 +93,7 @@ def controller_from_args(args: argparse.Namespace) -> Controller:
 def sensors_from_args(args: argparse.Namespace) -> Sensors:
     bits = _numbers(args.bits, "--bits", ("q", "theta"), "q=15,theta=20")
     for key, value in bits.items():
-        if value != int(value):
+        if not value.is_integer():
             raise CliError(f"--bits {key}={value:g} must be a whole number of bits")
     noise = _numbers(args.noise, "--noise", ("q", "theta", "tau"), "tau=0.05")
     named = {"resolver_bits": bits.get("q"), "encoder_bits": bits.get("theta"), "q_noise": noise.get("q"),
