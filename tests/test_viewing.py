@@ -51,6 +51,8 @@ def test_simulate_shows_the_arm_beside_the_traces(tmp_path):
     queried = [q for v in plots[1] for q in v[2] if not q.endswith("**")]
     assert queried and set(queried) <= logged  # every plot shows signals that are there
     assert any(e.startswith("/world/arm/") for e in logged)
+    angles = next(v for v in plots[1] if v[1].startswith("q/N and theta"))
+    assert {"/joint/theta", "/sensed/theta", "/sensed/theta_ref"} <= set(angles[2])  # true, sensed, reference
 
 
 @pytest.fixture(scope="module")

@@ -177,8 +177,10 @@ def run(args: argparse.Namespace, model: ModelFile, rate: float) -> int:
                                                             gear_ratio, outputs["csv"].name))
         if views:
             trace = sim.traces(loop.states, cols["u"])[0]
+            sensed = {"q_over_N": cols["q"] / gear_ratio, "theta": cols["theta"], "tau": cols["tau"],
+                      "theta_ref": theta_ref}
             write_outputs({kind: partial[path] for kind, path in views.items()}, [trace], sim,
-                          f"closed loop {reference.name}", what)
+                          f"closed loop {reference.name}", what, sensed)
     measured = on_side(cols["q"] if controller.on == "motor" else cols["theta"], controller.on, "link", gear_ratio)
     error = theta_ref - measured
     print(f"simulated {len(cols['t']) / rate:g} s in closed loop ({what}) at {rate:g} Hz: tracking error "

@@ -172,8 +172,10 @@ def _summary(name: str, excitation, trace: Trace, rate: float) -> str:
             f"max |delta| {1e3 * np.abs(trace.delta).max():.3g} mrad, max |tau| {np.abs(trace.tau).max():.3g} N m")
 
 
-def write_outputs(paths: dict[str, Path], traces: list[Trace], sim: Simulator, name: str, excitation) -> None:
-    """Write the traces to ``paths`` (kind -> path: csv, plot or plot1, plot2, ..., rrd)."""
+def write_outputs(paths: dict[str, Path], traces: list[Trace], sim: Simulator, name: str, excitation,
+                  sensed: dict[str, np.ndarray] | None = None) -> None:
+    """Write the traces to ``paths`` (kind -> path: csv, plot or plot1, plot2, ..., rrd); ``sensed``
+    signals of a single trace go into the .rrd beside it (``log_traces``)."""
     many = len(traces) > 1
     if "csv" in paths:
         if many:
@@ -188,7 +190,7 @@ def write_outputs(paths: dict[str, Path], traces: list[Trace], sim: Simulator, n
     if "rrd" in paths:
         from ..viz.rerun_log import log_traces  # rerun only when asked for
         log_traces({f"joint{j}": tr for j, tr in enumerate(traces, start=1)} if many else traces[0],
-                   model=sim.model, recording_name=f"simulate {name}", rrd_path=paths["rrd"])
+                   model=sim.model, recording_name=f"simulate {name}", rrd_path=paths["rrd"], sensed=sensed)
 
 
 def finish(outputs: dict[str, Path], spawn: bool) -> None:

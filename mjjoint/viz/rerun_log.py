@@ -8,7 +8,7 @@ traces (e.g. measured / simulated) each get their own subtree ``<name>/joint/...
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import mujoco
@@ -99,26 +99,31 @@ def log_arm(rec: rr.RecordingStream, root: str, model: mujoco.MjModel, t: np.nda
     return paths
 
 
+def log_series(rec: rr.RecordingStream, path: str, name: str, t: np.ndarray, values: np.ndarray) -> None:
+    """One named scalar series at times t, in one column batch."""
+    rec.log(path, rr.SeriesLines(names=name), static=True)
+    rec.send_columns(path, indexes=[sim_time(t)], columns=rr.Scalars.columns(scalars=np.asarray(values, float)))
+
+
 def log_signals(rec: rr.RecordingStream, root: str, trace: Trace) -> None:
-    """Log every signal of ``trace`` under ``{root}joint/`` in one column batch each."""
-    time = [sim_time(trace.t)]
+    """Log every signal of ``trace`` under ``{root}joint/``."""
     for name, values in trace_signals(trace).items():
-        path = f"{root}joint/{name}"
-        rec.log(path, rr.SeriesLines(names=f"{root}{name}"), static=True)
-        rec.send_columns(path, indexes=time, columns=rr.Scalars.columns(scalars=np.asarray(values, float)))
+        log_series(rec, f"{root}joint/{name}", f"{root}{name}", trace.t, values)
 
 
-def blueprint(roots: list[str], with_arm: bool) -> rrb.Blueprint:
-    """Arm in 3D beside stacked plots: angles, deflection, torques, friction and input, states."""
-    def view(name: str, *signals: str) -> rrb.TimeSeriesView:
+def blueprint(roots: list[str], with_arm: bool, sensed: Sequence[str] = ()) -> rrb.Blueprint:
+    """Arm in 3D beside stacked plots: angles, deflection, torques, friction and input, states;
+    ``sensed`` signals (``/sensed/<name>``) join the plots of their quantity."""
+    def view(name: str, signals: tuple[str, ...], also: tuple[str, ...] = ()) -> rrb.TimeSeriesView:
         return rrb.TimeSeriesView(name=name, origin="/",
-                                  contents=[f"/{r}joint/{s}" for r in roots for s in signals])
+                                  contents=[f"/{r}joint/{s}" for r in roots for s in signals]
+                                  + [f"/sensed/{s}" for s in (*signals, *also) if s in sensed])
     plots = rrb.Vertical(
-        view("q/N and theta [rad]", "q_over_N", "theta"),
-        view("deflection delta [rad]", "delta"),
-        view("transmission torque tau [N m]", "tau"),
-        view("input and friction [N m]", "u", "friction", "load_friction"),
-        view("internal states", "state/**"),
+        view("q/N and theta [rad]", ("q_over_N", "theta"), also=("theta_ref",)),
+        view("deflection delta [rad]", ("delta",)),
+        view("transmission torque tau [N m]", ("tau",)),
+        view("input and friction [N m]", ("u", "friction", "load_friction")),
+        view("internal states", ("state/**",)),
     )
     if not with_arm:
         return rrb.Blueprint(plots)
@@ -129,10 +134,12 @@ def blueprint(roots: list[str], with_arm: bool) -> rrb.Blueprint:
 def log_traces(traces: Mapping[str, Trace] | Trace, *, model: mujoco.MjModel | None = None,
                qpos: Mapping[str, np.ndarray] | np.ndarray | None = None, recording_name: str = APP_ID,
                rrd_path: str | Path | None = None, spawn: bool = False,
-               body_rate: float = BODY_RATE) -> Path | None:
+               body_rate: float = BODY_RATE, sensed: Mapping[str, np.ndarray] | None = None) -> Path | None:
     """Log ``traces`` (one, or several by name) to an .rrd file and/or a spawned viewer.
 
     With ``model``, the arm is drawn from ``qpos`` (default: each trace's own ``qpos``).
+    ``sensed``: what a recording's sensors made of one trace's signals (name -> samples at its
+    times: q_over_N, theta, tau, theta_ref), drawn as ``/sensed/<name>`` beside the true ones.
     Returns the .rrd path, if any.
     """
     named = {"": traces} if isinstance(traces, Trace) else {f"{k}/": v for k, v in traces.items()}
@@ -142,6 +149,10 @@ def log_traces(traces: Mapping[str, Trace] | Trace, *, model: mujoco.MjModel | N
         if len(named) != 1:
             raise ValueError("qpos must be a mapping by trace name when several traces are logged")
         poses = {root: np.asarray(qpos) for root in named}
+    sensed = dict(sensed or {})
+    if sensed and (len(named) != 1 or any(np.shape(v) != np.shape(next(iter(named.values())).t)
+                                          for v in sensed.values())):
+        raise ValueError("sensed signals go with one trace, one value per sample")
     if not spawn and rrd_path is None:
         raise ValueError("log_traces needs rrd_path or spawn=True")
     if model is not None:  # checked before any sink opens, so a bad call leaves no partial file
@@ -167,10 +178,12 @@ def log_traces(traces: Mapping[str, Trace] | Trace, *, model: mujoco.MjModel | N
     if rrd_path is not None:
         rrd_path = Path(rrd_path)
         sinks.append(rr.FileSink(str(rrd_path)))
-    rec.set_sinks(*sinks, default_blueprint=blueprint(list(named), model is not None))
+    rec.set_sinks(*sinks, default_blueprint=blueprint(list(named), model is not None, list(sensed)))
     rec.send_recording_name(recording_name)
     for root, trace in named.items():
         log_signals(rec, root, trace)
+        for name, values in sensed.items():
+            log_series(rec, f"sensed/{name}", f"sensed {name}", trace.t, values)
         if model is not None:
             log_arm(rec, root, model, trace.t, np.asarray(poses[root]), body_rate)
     try:
