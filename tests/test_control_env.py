@@ -101,12 +101,19 @@ def test_state_round_trip_continues_bit_identical(model):
     assert state[0] == physics.time()
     np.testing.assert_array_equal(state[-physics.model.npluginstate:], physics.data.plugin_state)
     assert np.any(physics.data.plugin_state != 0)
+    copy = physics.copy()
     first = _continue(physics, acts[100:])
-    with physics.reset_context():
-        physics.set_state(state)
-    again = _continue(physics, acts[100:])
-    np.testing.assert_array_equal(first[0], again[0])
-    np.testing.assert_array_equal(first[1], again[1])
+    for restored in ("in reset_context", "plain", "copy"):
+        if restored == "copy":
+            physics = copy
+        elif restored == "plain":
+            physics.set_state(state)
+        else:
+            with physics.reset_context():
+                physics.set_state(state)
+        again = _continue(physics, acts[100:])
+        np.testing.assert_array_equal(first[0], again[0], err_msg=restored)
+        np.testing.assert_array_equal(first[1], again[1], err_msg=restored)
     # dm_control's default state (qpos, qvel, act, plugin_state; no time) does not continue the
     # episode: the plugin's states hold at a time the restored data no longer has.
     with physics.reset_context():

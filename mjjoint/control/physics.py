@@ -4,7 +4,8 @@ dm_control's default ``get_state`` is qpos, qvel, act and plugin_state. That is 
 continue an episode exactly: the plugin's internal states carry the time they hold at (they
 advance only when ``d->time`` has moved, docs/design.md), and a delayed actuator keeps its input
 history. So the state here is MuJoCo's ``mjSTATE_FULLPHYSICS`` (time, qpos, qvel, act, actuator
-history, plugin states).
+history, plugin states), and ``set_state`` leaves the data ready to step (``forward``), inside
+``reset_context`` or not.
 """
 from __future__ import annotations
 
@@ -86,6 +87,9 @@ class JointPhysics(dm_mujoco.Physics):
         if state.shape != (size,):
             raise ValueError(f"physics state has shape {state.shape}; expected ({size},)")
         super().set_state(state, FULL if sig is None else sig)
+        # dm_control's legacy step starts with mj_step2, which uses the positions, velocities
+        # and passive forces of the last mj_step1: recompute them for the restored state.
+        self.forward()
 
     def motor_angles(self) -> np.ndarray:
         return self.data.qpos[self._motor_qpos].copy()
