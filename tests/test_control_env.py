@@ -17,7 +17,7 @@ from dm_env import test_utils
 
 from mjjoint import ArmSpec, JointParams, Transmission, build_arm
 from mjjoint.benchmark.recorder import lsb
-from mjjoint.control import TASKS, JointPhysics, JointSensors, load
+from mjjoint.control import TASKS, JointPhysics, JointSensors, build_rigid_arm, load
 
 EXACT = JointSensors(resolver_bits=None, encoder_bits=None, torque_noise=0.0)
 
@@ -191,32 +191,13 @@ def test_bad_task_and_rigid_rod_are_refused():
         load("hold", task_kwargs={"reach": (0.8, 0.3)})
 
 
-def rigid_arm(arm: ArmSpec, gear_ratio: float) -> JointPhysics:
-    """The same arm with motor and link geared rigidly: one hinge (the link) carrying the
-    rotor's reflected inertia N^2 J_m, driven by k_m N per ampere; no plugin."""
-    spec = build_arm(arm, JointParams())
-    for plugin in list(spec.plugins):
-        spec.delete(plugin)
-    for sensor in list(spec.sensors):
-        if sensor.name in ("q", "qd"):
-            spec.delete(sensor)
-    spec.delete(spec.joint("motor"))
-    spec.joint("link").armature = gear_ratio ** 2 * arm.motor_inertia
-    act = spec.actuator("current")
-    act.target = "link"
-    act.gear[0] = arm.k_m * gear_ratio
-    for key in spec.keys:
-        key.qpos = np.zeros(1 + arm.segments)
-    return dm_mujoco.Physics.from_model(wrapper.MjModel(spec.compile()))
-
-
 def test_a_stiff_frictionless_joint_moves_as_the_rigid_arm():
     # 1 s of 0.1 s current steps (+-3 A) swinging the arm over ~4.7 rad against gravity. A stiff
     # joint needs a short step (the stability check asks <= 89 us at k1 = 1e6).
     arm = ArmSpec(timestep=5e-5)
     rng = np.random.default_rng(0)
     acts = np.repeat(rng.uniform(-3, 3, 10), 100)[:, None]
-    rigid = rigid_arm(arm, 160.0)
+    rigid = dm_mujoco.Physics.from_model(wrapper.MjModel(build_rigid_arm(arm, 160.0).compile()))
     rigid.reset(0)
     theta_rigid, rod_rigid = [], []
     for u in acts:

@@ -17,6 +17,7 @@ import mujoco
 from dm_control.rl import control
 
 from .physics import JointPhysics
+from .rigid import build_rigid_arm
 from .sensors import JointSensors, SensorReadout
 from .tasks import Damp, Hold, JointTask, Track
 
@@ -42,4 +43,4 @@ def load(task_name: str, model: str | Path | mujoco.MjSpec | mujoco.MjModel = "s
 
 
 __all__ = ["CONTROL_TIMESTEP", "Damp", "Hold", "JointPhysics", "JointSensors", "JointTask", "SensorReadout",
-           "TASKS", "Track", "load"]
+           "TASKS", "Track", "build_rigid_arm", "load"]

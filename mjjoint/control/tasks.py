@@ -111,15 +111,18 @@ class Hold(JointTask):
 
 class Damp(JointTask):
     """Every flexible rod starts bent (its segments evenly, the tip's slope ``bend[0]`` to
-    ``bend[1]`` rad either way), link at rest; reward: the rods straight again. Links without
-    flexible segments are not scored."""
+    ``bend[1]`` rad either way), link at rest; reward: the rods' vibration amplitude
+    sqrt(b^2 + (b'/mode)^2) of the bend b back within ``tolerance`` (a bend passing zero at speed
+    is no calm rod). ``mode`` [rad/s] scales the rate: the shipped rod's first bending mode, ~21 Hz
+    (elastic_joint.xml). Links without flexible segments are not scored."""
 
     time_limit = 2.0
 
-    def __init__(self, bend: tuple[float, float] = (0.02, 0.05), tolerance: float = 1e-3,
-                 margin: float = 0.02, **kwargs) -> None:
+    def __init__(self, bend: tuple[float, float] = (0.02, 0.05), mode: float = 2 * math.pi * 21,
+                 tolerance: float = 2e-4, margin: float = 0.01, **kwargs) -> None:
         super().__init__(tolerance, margin, **kwargs)
         self.bend = interval("bend", bend, 0.0, 0.5)
+        self.mode = check("mode", mode, 0.0, 1e5, lo_open=True)
 
     def start(self, physics) -> None:
         self._scored = np.array([len(r) > 0 for r in physics.rod_qpos])
@@ -129,5 +132,9 @@ class Damp(JointTask):
             slope = self.random.uniform(*self.bend) * self.random.choice([-1.0, 1.0])
             physics.data.qpos[rod] = slope / max(len(rod), 1)
 
+    def vibration(self, physics) -> np.ndarray:
+        """Each scored rod's vibration amplitude [rad]."""
+        return np.hypot(physics.rod_bends(), physics.rod_bend_rates() / self.mode)[self._scored]
+
     def get_reward(self, physics) -> float:
-        return closeness(physics.rod_bends()[self._scored], self.tolerance, self.margin)
+        return closeness(self.vibration(physics), self.tolerance, self.margin)
