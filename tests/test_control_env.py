@@ -15,7 +15,7 @@ from dm_control import mujoco as dm_mujoco
 from dm_control.mujoco import wrapper
 from dm_env import test_utils
 
-from mjjoint import ArmSpec, JointParams, Transmission, build_arm
+from mjjoint import ASSETS_DIR, ArmSpec, JointParams, Transmission, build_arm
 from mjjoint.benchmark.recorder import lsb
 from mjjoint.control import TASKS, JointPhysics, JointSensors, build_rigid_arm, load
 
@@ -125,6 +125,23 @@ def test_state_round_trip_continues_bit_identical(model):
     assert not np.array_equal(_continue(physics, acts[100:])[0], first[0])
 
 
+def test_dm_control_loads_the_plugin_model_from_xml():
+    """dm_control's own constructors read MJCF with the mjjoint.joint plugin (import mjjoint
+    registered it) and run the same physics as JointPhysics.load."""
+    spec = build_arm(ArmSpec(segments=2), scene=False)
+    runs = []
+    for physics in (dm_mujoco.Physics.from_xml_string(spec.to_xml()),
+                    JointPhysics.from_xml_path(str(ASSETS_DIR / "elastic_joint.xml")),
+                    JointPhysics.load(spec)):
+        assert physics.model.nplugin == 1
+        physics.reset(0)
+        runs.append(_continue(physics, [np.array([2.0])] * 50))
+    assert np.any(runs[0][1] != 0)           # the plugin's states moved
+    np.testing.assert_array_equal(runs[0][0], runs[2][0])
+    np.testing.assert_array_equal(runs[0][1], runs[2][1])
+    assert runs[1][0].shape[1] == 6          # the shipped 4-segment arm
+
+
 def test_set_state_of_the_wrong_size_is_refused():
     physics = JointPhysics.load("scene.xml")
     with pytest.raises(ValueError, match="expected"):
@@ -151,22 +168,28 @@ def test_sensors_quantise_add_noise_and_delay():
             np.testing.assert_array_equal(o[key], ref[max(k - 3, 0)][key])
 
 
+def _links(physics) -> list[int]:
+    return [ji.link_qpos for ji in physics.joints]
+
+
 def test_rewards_are_one_on_target_and_fall_off_it():
     env = short("hold", "arm2_planar.xml")
     env.reset()
     physics, task = env.physics, env.task
-    physics.data.qpos[physics._link_qpos] = task.target
+    physics.data.qpos[_links(physics)] = task.target
     assert task.get_reward(physics) == 1.0
-    physics.data.qpos[physics._link_qpos] = task.target + 0.2
+    physics.data.qpos[_links(physics)] = task.target + 0.05
     assert 0.0 < task.get_reward(physics) < 0.9
     env = short("track")
     env.reset()
     physics, task = env.physics, env.task
     physics.data.time = 0.3
-    physics.data.qpos[physics._link_qpos] = task.reference(0.3)
+    physics.data.qpos[_links(physics)] = task.reference(0.3)
     assert task.get_reward(physics) == 1.0
+    physics.data.qpos[_links(physics)] += 0.05
+    assert 0.0 < task.get_reward(physics) < 0.9
     env = short("damp")
-    ts = env.reset()
+    env.reset()
     assert 0.0 <= env.task.get_reward(env.physics) < 0.5  # starts bent
     physics = env.physics
     for rod in physics.rod_qpos:
@@ -189,6 +212,8 @@ def test_bad_task_and_rigid_rod_are_refused():
         env.reset()
     with pytest.raises(ValueError, match="reach="):
         load("hold", task_kwargs={"reach": (0.8, 0.3)})
+    with pytest.raises(ValueError, match="sensors="):
+        load("track", task_kwargs={"sensors": {"delay": 1}})
 
 
 def test_a_stiff_frictionless_joint_moves_as_the_rigid_arm():

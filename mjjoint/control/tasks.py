@@ -41,6 +41,8 @@ class JointTask(base.Task):
         super().__init__(random=random)
         self.tolerance = check("tolerance", tolerance, 0.0, lo_open=True)
         self.margin = check("margin", margin, 0.0)
+        if not isinstance(sensors, JointSensors):
+            raise ValueError(f"sensors={sensors!r} must be a mjjoint.control.JointSensors")
         self.sensors = sensors
         self._readout = SensorReadout(sensors)
 
@@ -64,7 +66,7 @@ class Track(JointTask):
     time_limit = 10.0
 
     def __init__(self, amplitude: float = 0.3, frequencies: tuple[float, float] = (0.2, 1.0),
-                 tolerance: float = 0.01, margin: float = 0.2, **kwargs) -> None:
+                 tolerance: float = 0.01, margin: float = 0.1, **kwargs) -> None:
         super().__init__(tolerance, margin, **kwargs)
         self.amplitude = check("amplitude", amplitude, 0.0, math.pi, lo_open=True)
         self.frequencies = interval("frequencies", frequencies, 0.0, 50.0, lo_open=True)
@@ -92,7 +94,7 @@ class Hold(JointTask):
     sensors and the target."""
 
     def __init__(self, reach: tuple[float, float] = (0.3, 0.8), tolerance: float = 0.005,
-                 margin: float = 0.5, **kwargs) -> None:
+                 margin: float = 0.1, **kwargs) -> None:
         super().__init__(tolerance, margin, **kwargs)
         self.reach = interval("reach", reach, 0.0, math.pi)
 
