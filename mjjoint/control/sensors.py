@@ -15,6 +15,7 @@ import numpy as np
 
 from ..benchmark.recorder import LINK_ENCODER_BITS, RESOLVER_BITS, quantise
 from ..params import check
+from .physics import JointPhysics
 
 
 def _bits(name: str, value: int | None) -> None:
@@ -52,7 +53,7 @@ class SensorReadout:
         self._queue.clear()
         self._time = None
 
-    def read(self, physics, random: np.random.RandomState) -> OrderedDict:
+    def read(self, physics: JointPhysics, random: np.random.RandomState) -> OrderedDict:
         # Observations may be asked for more than once per step: sample only when time moved.
         if self._time != physics.time():
             self._time = physics.time()
@@ -64,7 +65,7 @@ class SensorReadout:
                 self._queue.popleft()
         return OrderedDict((k, v.copy()) for k, v in self._queue[0].items())
 
-    def _sample(self, physics, random: np.random.RandomState) -> OrderedDict:
+    def _sample(self, physics: JointPhysics, random: np.random.RandomState) -> OrderedDict:
         s = self.sensors
         q, theta = physics.motor_angles(), physics.link_angles()
         torque = physics.transmission_torques()

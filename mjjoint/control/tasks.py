@@ -12,6 +12,7 @@ from dm_control.suite import base
 from dm_control.utils import rewards
 
 from ..params import check
+from .physics import JointPhysics
 from .sensors import JointSensors, SensorReadout
 
 
@@ -46,16 +47,16 @@ class JointTask(base.Task):
         self.sensors = sensors
         self._readout = SensorReadout(sensors)
 
-    def initialize_episode(self, physics) -> None:
+    def initialize_episode(self, physics: JointPhysics) -> None:
         physics.reset(0 if physics.model.nkey else None)
         self._readout.clear()
         self.start(physics)
         super().initialize_episode(physics)
 
-    def start(self, physics) -> None:
+    def start(self, physics: JointPhysics) -> None:
         """Draw the episode's goal or disturbance from ``self.random``."""
 
-    def get_observation(self, physics) -> OrderedDict:
+    def get_observation(self, physics: JointPhysics) -> OrderedDict:
         return self._readout.read(physics, self.random)
 
 
@@ -71,7 +72,7 @@ class Track(JointTask):
         self.amplitude = check("amplitude", amplitude, 0.0, math.pi, lo_open=True)
         self.frequencies = interval("frequencies", frequencies, 0.0, 50.0, lo_open=True)
 
-    def start(self, physics) -> None:
+    def start(self, physics: JointPhysics) -> None:
         n = len(physics.joints)
         self._f = self.random.uniform(*self.frequencies, n)
         self._phi = self.random.uniform(0.0, 2 * math.pi, n)
@@ -79,12 +80,12 @@ class Track(JointTask):
     def reference(self, t: float) -> np.ndarray:
         return self.amplitude * (np.sin(2 * math.pi * self._f * t + self._phi) - np.sin(self._phi))
 
-    def get_observation(self, physics) -> OrderedDict:
+    def get_observation(self, physics: JointPhysics) -> OrderedDict:
         obs = super().get_observation(physics)
         obs["reference"] = self.reference(physics.time())
         return obs
 
-    def get_reward(self, physics) -> float:
+    def get_reward(self, physics: JointPhysics) -> float:
         return closeness(physics.link_angles() - self.reference(physics.time()), self.tolerance, self.margin)
 
 
@@ -98,16 +99,16 @@ class Hold(JointTask):
         super().__init__(tolerance, margin, **kwargs)
         self.reach = interval("reach", reach, 0.0, math.pi)
 
-    def start(self, physics) -> None:
+    def start(self, physics: JointPhysics) -> None:
         n = len(physics.joints)
         self.target = self.random.uniform(*self.reach, n) * self.random.choice([-1.0, 1.0], n)
 
-    def get_observation(self, physics) -> OrderedDict:
+    def get_observation(self, physics: JointPhysics) -> OrderedDict:
         obs = super().get_observation(physics)
         obs["target"] = self.target.copy()
         return obs
 
-    def get_reward(self, physics) -> float:
+    def get_reward(self, physics: JointPhysics) -> float:
         return closeness(physics.link_angles() - self.target, self.tolerance, self.margin)
 
 
@@ -126,7 +127,7 @@ class Damp(JointTask):
         self.bend = interval("bend", bend, 0.0, 0.5)
         self.mode = check("mode", mode, 0.0, 1e5, lo_open=True)
 
-    def start(self, physics) -> None:
+    def start(self, physics: JointPhysics) -> None:
         self._scored = np.array([len(r) > 0 for r in physics.rod_qpos])
         if not self._scored.any():
             raise ValueError("the model's links have no flexible segments: nothing to damp")
@@ -134,9 +135,9 @@ class Damp(JointTask):
             slope = self.random.uniform(*self.bend) * self.random.choice([-1.0, 1.0])
             physics.data.qpos[rod] = slope / max(len(rod), 1)
 
-    def vibration(self, physics) -> np.ndarray:
+    def vibration(self, physics: JointPhysics) -> np.ndarray:
         """Each scored rod's vibration amplitude [rad]."""
         return np.hypot(physics.rod_bends(), physics.rod_bend_rates() / self.mode)[self._scored]
 
-    def get_reward(self, physics) -> float:
+    def get_reward(self, physics: JointPhysics) -> float:
         return closeness(self.vibration(physics), self.tolerance, self.margin)
