@@ -87,8 +87,11 @@ def _continue(physics: JointPhysics, acts) -> tuple[np.ndarray, np.ndarray]:
     return np.array(qpos), np.array(plugin)
 
 
-@pytest.mark.parametrize("model", ["scene.xml", "arm2_planar.xml"])
+@pytest.mark.parametrize("model", ["scene.xml", "arm2_planar.xml", "input_delay"])
 def test_state_round_trip_continues_bit_identical(model):
+    delayed = model == "input_delay"
+    if delayed:  # the actuator's input history is state too
+        model = build_arm(ArmSpec(input_delay=1.2e-3))
     env = short("hold", model, steps=200)
     physics = env.physics
     acts = actions(env, 200)
@@ -123,6 +126,13 @@ def test_state_round_trip_continues_bit_identical(model):
     with physics.reset_context():
         dm_mujoco.Physics.set_state(physics, partial)
     assert not np.array_equal(_continue(physics, acts[100:])[0], first[0])
+    if delayed:  # and without the input history neither, even at the right time
+        no_history = int(mujoco.mjtState.mjSTATE_FULLPHYSICS) & ~int(mujoco.mjtState.mjSTATE_HISTORY)
+        physics.set_state(state)
+        partial = physics.get_state(no_history)
+        physics.step(40)
+        physics.set_state(partial, no_history)
+        assert not np.array_equal(_continue(physics, acts[100:])[0], first[0])
 
 
 def test_dm_control_loads_the_plugin_model_from_xml():
