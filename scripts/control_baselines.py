@@ -4,7 +4,9 @@ arm, the cost of an environment step, the stiff-joint limit and the import cost.
   zero   no current: what the arm does on its own (hanging; for damp, the passive decay);
   pd     a motor-side PD per joint on the sensors only (quantised motor angle, its filtered
          difference as velocity), set point N x the link's goal (reference, target, 0): the
-         lab's loop (mjjoint.benchmark.recorder.Controller), in amperes, no gravity model.
+         lab's loop (mjjoint.benchmark.recorder.Controller), in amperes, no gravity model;
+  torque motor torque -g T/N per joint from the torque cell (g = 4, noise included): the motor
+         gives way to the rod's pull on the hub, which damps the rod; no position loop.
 
 Mean reward over one episode of the task's default length, seed 0, default sensors. Step cost:
 thread CPU time per env.step of the zero policy, best of --repeats episodes, beside the bare
@@ -53,6 +55,14 @@ def pd_policy(env):
         u = np.clip(c.kp * (n_gear * goal - q) - c.kd * state["v"], -c.u_max, c.u_max)
         return np.clip(u / k_m, spec.minimum, spec.maximum)
     return act
+
+
+def torque_policy(env, gain: float = 4.0):
+    """Motor torque -gain T/N per joint, T the torque cell's reading, in amperes."""
+    joints = env.physics.joints
+    scale = np.array([-gain / (ji.gear_ratio * ji.k_m) for ji in joints])
+    spec = env.action_spec()
+    return lambda obs: np.clip(scale * obs["joint_torque"], spec.minimum, spec.maximum)
 
 
 def run(env, policy=None) -> tuple[float, float]:
@@ -110,16 +120,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
-    print("| arm | task | zero | pd | env step [us] | bare 2 x mj_step [us] |")
-    print("|---|---|---|---|---|---|")
+    print("| arm | task | zero | pd | torque | env step [us] | bare 2 x mj_step [us] |")
+    print("|---|---|---|---|---|---|---|")
     for model in MODELS:
         bare = min(bare_step(model) for _ in range(args.repeats)) * 1e6
         for task in TASKS:
             env = load(task, model, task_kwargs={"random": 0})
             zero = [run(env) for _ in range(args.repeats)]
-            pd = run(load(task, model, task_kwargs={"random": 0}), pd_policy)[0]
+            pd, torque = (run(load(task, model, task_kwargs={"random": 0}), p)[0] for p in (pd_policy, torque_policy))
             cost = min(z[1] for z in zero) * 1e6
-            print(f"| {model} | {task} | {zero[0][0]:.3f} | {pd:.3f} | {cost:.0f} | {bare:.0f} |")
+            print(f"| {model} | {task} | {zero[0][0]:.3f} | {pd:.3f} | {torque:.3f} | {cost:.0f} | {bare:.0f} |")
     limit = rigid_limit()
     print(f"\nstiff joint vs rigid arm, max |theta - theta_rigid| over a {limit.pop('swing'):.2f} rad swing:")
     for k1, err in limit.items():

@@ -76,7 +76,6 @@ class JointPhysics(dm_mujoco.Physics):
         self._rod_dof = [self.model.jnt_dofadr[r] for r in rods]
         self._motor_qpos = np.array([ji.motor_qpos for ji in self.joints])
         self._link_qpos = np.array([ji.link_qpos for ji in self.joints])
-        self._link_dof = np.array([ji.link_dof for ji in self.joints])
 
     def get_state(self, sig=None) -> np.ndarray:
         return super().get_state(FULL if sig is None else sig)
@@ -96,9 +95,6 @@ class JointPhysics(dm_mujoco.Physics):
 
     def link_angles(self) -> np.ndarray:
         return self.data.qpos[self._link_qpos].copy()
-
-    def link_velocities(self) -> np.ndarray:
-        return self.data.qvel[self._link_dof].copy()
 
     def rod_bends(self) -> np.ndarray:
         return np.array([self.data.qpos[r].sum() for r in self.rod_qpos])
