@@ -33,6 +33,15 @@ from .viz import log_traces
 # API reads it (MjModel.from_xml_path, MjSpec.compile, ...): importing mjjoint is enough.
 register()
 
+
+def __getattr__(name: str):
+    # mjjoint.control imports dm_control (and its renderer probe): loaded for those who use it.
+    if name == "control":
+        import importlib
+        return importlib.import_module(".control", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 __version__ = "0.1.0"
 
 __all__ = [
