@@ -1,4 +1,4 @@
-"""`read_recording`: load a .csv, .npz or .mat file, map and scale its columns, check them."""
+"""`read_recording`: load a .csv, .npz, .mat or HDF5 file, map and scale its columns, check them."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import numpy as np
 from .columns import ALLOWED, check_column_map, check_scales, expand_scales, resolve_columns, split_joint
 from .csv_io import read_csv_table
 from .errors import RecordingError, listing
+from .h5_io import read_h5_table
 from .mat_io import read_mat_table
 from .model import MultiRecording, Recording
 from .npz_io import read_npz_table
@@ -32,6 +33,8 @@ _LOADERS: dict[str, Callable[[Path], _Table]] = {
     ".csv": read_csv_table,
     ".npz": read_npz_table,
     ".mat": read_mat_table,
+    ".h5": read_h5_table,
+    ".hdf5": read_h5_table,
 }
 
 
