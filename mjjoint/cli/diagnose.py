@@ -27,7 +27,7 @@ examples:
   mjjoint diagnose arm.csv --model arm.toml --joint 1,2   each joint of a multi-joint recording
 
 writes DIR/index.html (verdict, per-step evidence, figures), diagnosis.json (same inputs and
-seed give the same bytes), traces.rrd (measured, before and after; 'rerun traces.rrd'),
+seed give the same bytes), model.toml (the final model, for simulate --model), traces.rrd (measured, before and after; 'rerun traces.rrd'),
 PNGs and run.json (wall time); DIR appears only when complete. A multi-joint recording
 (u1,q1,theta1,tau1,u2,...) is diagnosed joint by joint into DIR/joint{{j}}/; DIR/diagnosis.json
 says which joints miss something ("mismatch_in") and DIR/index.html links the reports.

@@ -41,8 +41,10 @@ examples:
       --base coulomb_friction,viscous_friction,input_offset
   mjjoint fit arm.csv --gear-ratio 160,100 --joint 2            joint 2 of a multi-joint recording (u1,q1,...)
 
-writes DIR/fit.json (parameters, 95 % intervals, warnings, NRMSE), heldout_windows.png,
-residual.png, traces.rrd, index.html and run.json; DIR appears only when complete.
+writes DIR/fit.json (parameters, 95 % intervals, warnings, NRMSE), model.toml (the fitted model,
+for simulate --model), heldout_windows.png, residual.png, traces.rrd, index.html and run.json;
+DIR appears only when complete. Several recordings (REC1 REC2 ...) are fitted together as
+separate segments: no window spans two.
 
 A multi-joint recording (columns u1,q1,theta1,tau1,u2,...) is fitted joint by joint: DIR/joint{j}/
 holds each joint's files, DIR/fit.json and DIR/index.html gather them (docs/multijoint.md).
