@@ -166,8 +166,7 @@ class Measured:
         cols = {k: None if getattr(rec, k, None) is None else np.interp(grid, t, np.asarray(getattr(rec, k), float))
                 for k in names}
         cols.setdefault("theta", None)
-        win = _sg_window(dt)
-        deriv = lambda x: None if x is None else savgol_filter(x, win, VELOCITY_ORDER, deriv=1, delta=dt)  # noqa: E731
+        deriv = lambda x: None if x is None else velocity(x, dt)  # noqa: E731
         return cls(t=grid, qd=deriv(cols["q"]), thetad=deriv(cols["theta"]),
                    gear_ratio=float(gear_ratio), rate=1.0 / dt, **cols)
 
@@ -238,6 +237,11 @@ def _window_starts(total: int, n: int, u: np.ndarray, half: int, max_shift: int,
             starts.append(s)
             s += n
     return np.array(starts, dtype=int)
+
+
+def velocity(x: np.ndarray, dt: float) -> np.ndarray:
+    """The derivative of a uniformly sampled signal, the Savitzky-Golay one of window starts."""
+    return savgol_filter(x, _sg_window(dt), VELOCITY_ORDER, deriv=1, delta=dt)
 
 
 def _sg_window(dt: float) -> int:

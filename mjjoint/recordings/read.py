@@ -9,7 +9,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .columns import ALLOWED, check_column_map, check_scales, expand_scales, resolve_columns, split_joint
+from .columns import ALLOWED, OPTIONAL, SIGNALS, check_column_map, check_scales, expand_scales, resolve_columns, split_joint
 from .csv_io import read_csv_table
 from .errors import RecordingError, listing
 from .h5_io import read_h5_table
@@ -75,10 +75,30 @@ def read_recording(
     allow_gaps: interpolate across steps longer than 5 median periods instead of refusing.
     Several joints (u1, q1, theta1, ...) give a MultiRecording. Raises RecordingError.
     """
+    signals, meta = read_signals(path, columns, scales, k_m, allow_extra=allow_extra, allow_gaps=allow_gaps,
+                                 timestep=timestep)
+    return _build(signals, _positive("gear_ratio", gear_ratio), meta)
+
+
+def read_signals(
+    path: str | Path,
+    columns: Mapping[str, str] | None = None,
+    scales: Mapping[str, float] | None = None,
+    k_m: float | None = None,
+    *,
+    allow_extra: bool = False,
+    allow_gaps: bool = False,
+    timestep: float | None = None,
+    layout: Sequence[str] = SIGNALS,
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """(signals by canonical name, meta) of a file, checked and on a uniform grid, as
+    `read_recording` reads them; `layout`: a single joint's signals, all of them required
+    unless they are the recording's own (SIGNALS, tau optional), e.g. ('t', 'q', 'tau') for a
+    friction log."""
     where, path = str(path), Path(path)
     columns = check_column_map(columns or {})
     scales = check_scales(scales or {})
-    gear_ratio, k_m = _positive("gear_ratio", gear_ratio), _positive("k_m", k_m)
+    k_m = _positive("k_m", k_m)
     timestep = _positive("timestep", timestep)
     if not path.exists():
         raise RecordingError(f"{where}: no such file")
@@ -97,7 +117,9 @@ def read_recording(
     table = loader(path)
     if isinstance(table, LogTable):
         columns = {"t": CLOCKS[0], **columns}  # a log's time is a choice of clock, not a topic
-    sources = resolve_columns(table.names, columns, where, table.kind)
+    layout = tuple(layout)
+    sources = resolve_columns(table.names, columns, where, table.kind, layout,
+                              OPTIONAL if layout == SIGNALS else ())
     factors = expand_scales(scales, sources, where)
     merged = None
     if isinstance(table, LogTable):
@@ -122,7 +144,7 @@ def read_recording(
 
     meta = {"source": where, "format": "rosbag2" if path.is_dir() else path.suffix.lower()[1:], "columns": sources,
             "scales": factors, "k_m": k_m, "resampled": merged or resampled}
-    return _build(signals, gear_ratio, meta)
+    return signals, meta
 
 
 def _build(signals: dict[str, np.ndarray], gear_ratio: float | None, meta: dict[str, Any]) -> Recording | MultiRecording:
