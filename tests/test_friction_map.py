@@ -81,3 +81,15 @@ def test_cli_friction_map_refuses_what_does_not_apply(tmp_path: Path, capsys, mo
     path.write_text("t,q,tau\n" + "".join(f"{i * 1e-3},0,0\n" for i in range(100)))
     assert main(["diagnose", str(path), "--friction-map", *extra, "--out", "fm"]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_dynamic_2sep_log_names_dynamic_friction_and_recovers_k_and_b():
+    """2SEP driven by the measured velocity: pre-sliding stiffness K and lag gain B come back."""
+    effects = ("coulomb_friction", "viscous_friction", "stribeck_friction", "dynamic_friction")
+    values = {**STATIC, "dynamic_friction.k": 200.0, "dynamic_friction.b": 500.0}
+    result = fit_friction_map(FrictionLog((friction_log(effects, values),)))
+    assert set(s["effect"] for s in result.steps) == {"dynamic_friction", "stribeck_friction"}
+    got = result.final.values
+    for name in ("dynamic_friction.k", "dynamic_friction.b", "coulomb_friction.fc", "stribeck_friction.vs"):
+        assert got[name] == pytest.approx(values[name], rel=0.05), name
+    assert result.final.rms == pytest.approx(NOISE, rel=0.2)
