@@ -93,3 +93,13 @@ def test_dynamic_2sep_log_names_dynamic_friction_and_recovers_k_and_b():
     for name in ("dynamic_friction.k", "dynamic_friction.b", "coulomb_friction.fc", "stribeck_friction.vs"):
         assert got[name] == pytest.approx(values[name], rel=0.05), name
     assert result.final.rms == pytest.approx(NOISE, rel=0.2)
+
+
+def test_cli_friction_logs_at_different_rates_are_refused(tmp_path: Path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name, dt in (("a.csv", 1e-3), ("b.csv", 2e-3)):
+        (tmp_path / name).write_text("t,q,tau\n" + "".join(f"{i * dt},{np.sin(i * dt)},1\n" for i in range(500)))
+    assert main(["diagnose", "a.csv", "b.csv", "--friction-map", "--out", "fm"]) == 2
+    err = capsys.readouterr().err
+    assert "b.csv: 500 Hz; the friction logs of one diagnosis must share one sample rate (a.csv: 1000 Hz)" in err
+    assert not (tmp_path / "fm").exists()

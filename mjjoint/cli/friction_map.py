@@ -12,8 +12,7 @@ import sys
 import time
 
 from ..identify.friction_map import FRICTION_EFFECTS, FrictionLog, fit_friction_map
-from ..recordings.read import read_signals
-from ..recordings import parse_column_map, parse_scales
+from ..recordings import parse_column_map, parse_scales, read_signals
 from ..recordings.resample import describe
 from ..report.output import OutputDir
 from .errors import CliError
