@@ -26,9 +26,10 @@ def u_of(t):
     return 0.5 + 2.0 * t  # linear: interpolation between the 250 Hz samples is exact
 
 
-def write_log(path: Path, storage: StoragePlugin, latency_ns: int = 0) -> None:
+def write_log(path: Path, storage: StoragePlugin, latency_ns: int = 0, swap: bool = False) -> None:
     """/joint_states (JointState, header stamps on a 1 kHz clock, logged `latency_ns` later) and
-    /cmd (Float64, no header: log time only) at 250 Hz, starting 3 ms after the joints."""
+    /cmd (Float64, no header: log time only) at 250 Hz, starting 3 ms after the joints. `swap`:
+    every other JointState lists its joints in the other order, as publishers may."""
     joint_state, header, stamp = (TS.types[k] for k in ("sensor_msgs/msg/JointState", "std_msgs/msg/Header",
                                                          "builtin_interfaces/msg/Time"))
     f64 = TS.types["std_msgs/msg/Float64"]
@@ -39,9 +40,11 @@ def write_log(path: Path, storage: StoragePlugin, latency_ns: int = 0) -> None:
         for k in range(int(DURATION * JOINT_RATE) + 1):
             ns = START + k * 10**9 // JOINT_RATE
             t = k / JOINT_RATE
+            order = [1, 0] if swap and k % 2 else [0, 1]
             msg = joint_state(header=header(stamp=stamp(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="arm"),
-                              name=["link", "motor"], position=np.array([np.sin(t), 100 * np.sin(t)]),
-                              velocity=np.zeros(2), effort=np.array([0.0, 3 * np.cos(t)]))
+                              name=[["link", "motor"][i] for i in order],
+                              position=np.array([np.sin(t), 100 * np.sin(t)])[order],
+                              velocity=np.zeros(2), effort=np.array([0.0, 3 * np.cos(t)])[order])
             w.write(joints, ns + latency_ns, TS.serialize_cdr(msg, joint_state.__msgtype__))
         for k in range(int(DURATION * CMD_RATE) + 1):
             t = 0.003 + k / CMD_RATE
@@ -92,6 +95,17 @@ def test_header_stamps_or_log_time(tmp_path: Path) -> None:
     np.testing.assert_allclose(by_log.theta, np.sin(true_time(by_log) - 0.007), atol=1e-12)
 
 
+def test_joint_state_entries_by_name(logs: dict[str, Path], tmp_path: Path) -> None:
+    """By name, a joint's entry is found in every message, whatever order the message lists them in."""
+    by_index = read_recording(logs["MCAP"], columns=parse_column_map(COLUMNS))
+    swapped = tmp_path / "swapped"
+    write_log(swapped, StoragePlugin.MCAP, swap=True)
+    named = COLUMNS.replace("position[1]", "position[motor]").replace("position[0]", "position[link]")
+    by_name = read_recording(swapped, columns=parse_column_map(named.replace("effort[1]", "effort[motor]")))
+    for name, x in by_index.signals().items():
+        np.testing.assert_array_equal(getattr(by_name, name), x, err_msg=name)
+
+
 @pytest.mark.parametrize(
     ("columns", "expected"),
     [
@@ -99,6 +113,7 @@ def test_header_stamps_or_log_time(tmp_path: Path) -> None:
         ("q=/joint_states.pos[1]", ["has no field 'pos'", "'position'"]),
         ("q=/joint_states.position", ["is an array of 2 value(s)", "position[i]"]),
         ("q=/joint_states.position[2]", ["has 2 value(s); allowed indices 0..1"]),
+        ("q=/joint_states.position[wrist]", ["has no entry named 'wrist'", "'link', 'motor'"]),
         ("q=/joint_states.header.frame_id", ["'/joint_states.header.frame_id' is not a number (str)"]),
         ("q=joint_states.position[1]", ["cannot parse it", "/TOPIC.FIELD"]),
         ("t=wall", ["t='wall'", "header, log"]),

@@ -2,7 +2,9 @@
 
 Read with `rosbags` (no ROS installation needed), the optional extra `robotlogs`. A source
 name is a topic and a field path, `/joint_states.position[1]`, `/cmd.data`,
-`/odom.twist.twist.linear.x` (0-based index into an array field). Each topic has its own
+`/odom.twist.twist.linear.x` (0-based index into an array field), or by a joint's name where
+the message names its entries (`sensor_msgs/JointState`: `/joint_states.position[motor]`
+takes the entry of `name` 'motor' in every message, whatever the order). Each topic has its own
 clock and rate; `merged` puts every signal on one uniform grid (resample.merge_streams).
 The time base, the source of `t`: `header`, a message's header stamp (its log time where the
 message has no header; the default) or `log`, the time the logger received it.
@@ -25,8 +27,8 @@ from .validate import Context, check_time
 EXTRA = "robotlogs"
 CLOCKS = ("header", "log")
 _SOURCE = re.compile(r"(/[^.\s\[\]]*)\.(.+)")
-_FIELD = re.compile(r"\s*([A-Za-z_]\w*)\s*(?:\[\s*([0-9]+)\s*\])?\s*")
-FORMS = "/TOPIC.FIELD, /TOPIC.FIELD.SUBFIELD or /TOPIC.FIELD[i] (0-based)"
+_FIELD = re.compile(r"\s*([A-Za-z_]\w*)\s*(?:\[\s*([0-9]+|[A-Za-z_][\w/.-]*)\s*\])?\s*")
+FORMS = "/TOPIC.FIELD, /TOPIC.FIELD.SUBFIELD, /TOPIC.FIELD[i] (0-based) or /TOPIC.FIELD[JOINT_NAME]"
 
 
 def is_log_folder(path: Path) -> bool:
@@ -50,7 +52,7 @@ class FieldPick:
     """A parsed source name: the topic and the field path, each step with an optional index."""
 
     topic: str
-    steps: tuple[tuple[str, int | None], ...]
+    steps: tuple[tuple[str, int | str | None], ...]  # field, and an index or an entry's name
 
     def value(self, msg: Any, what: str) -> float:
         x, walked = msg, self.topic
@@ -58,7 +60,13 @@ class FieldPick:
             if not hasattr(x, name):
                 fields = getattr(type(x), "__dataclass_fields__", {})
                 raise RecordingError(f"{what}: {quote(walked)} has no field {quote(name)}; fields: {listing(fields)}")
-            x, walked = getattr(x, name), f"{walked}.{name}"
+            parent, x, walked = x, getattr(x, name), f"{walked}.{name}"
+            if isinstance(index, str):
+                names = list(getattr(parent, "name", None) or [])
+                if index not in names:
+                    raise RecordingError(f"{what}: {quote(walked)} has no entry named {quote(index)}; "
+                                         f"the message's name field holds {listing(names)}")
+                index = names.index(index)
             if index is not None:
                 if not isinstance(x, (np.ndarray, list, tuple)):
                     raise RecordingError(f"{what}: {quote(walked)} is not an array, so has no element [{index}]")
@@ -81,7 +89,7 @@ def parse_field(source: str, what: str) -> FieldPick:
         f = _FIELD.fullmatch(part)
         if f is None:
             raise RecordingError(f"{what}: cannot parse the field {quote(part)}; allowed: {FORMS}")
-        steps.append((f[1], None if f[2] is None else int(f[2])))
+        steps.append((f[1], None if f[2] is None else int(f[2]) if f[2].isdigit() else f[2]))
     return FieldPick(m[1], tuple(steps))
 
 
