@@ -29,6 +29,8 @@ NOMINAL = ArmSpec(segments=0, gravity=0.0)
 EFFECTS = ("linear_stiffness", "transmission_damping", "coulomb_friction", "dynamic_friction")
 VALUES = {"linear_stiffness.k1": 1e4, "transmission_damping.d": 2.0, "coulomb_friction.fc": 0.02}
 TRUTH = Structure.create(EFFECTS, NOMINAL, GEAR, VALUES)
+# With a delay, a window at a join would reach back into the previous run's input.
+DELAYED = Structure.create((*EFFECTS, "input_delay"), NOMINAL, GEAR, {**VALUES, "input_delay.delay": 4e-3})
 DESIGN = WindowDesign(length=0.1, lead=0.2)
 
 
@@ -63,12 +65,13 @@ def test_stacked_windows_predict_what_each_run_predicts(runs):
     n = both.nwin_samples
     for join in joins:
         assert not np.any((both.starts < join) & (both.starts + n > join))  # no window spans a join
-    (stacked,) = both.predict([TRUTH], common)
-    per_run = [p.predict([TRUTH])[0] for p in alone]
-    for s in ("q", "delta", "tau"):
-        expected = np.concatenate([r[s] for r in per_run])
-        scale = np.ptp(expected)
-        np.testing.assert_allclose(stacked[s], expected, rtol=0, atol=1e-6 * scale, err_msg=s)
+    for model in (TRUTH, DELAYED):
+        (stacked,) = both.predict([model], common)
+        per_run = [p.predict([model])[0] for p in alone]
+        for s in ("q", "delta", "tau"):
+            expected = np.concatenate([r[s] for r in per_run])
+            scale = np.ptp(expected)
+            np.testing.assert_allclose(stacked[s], expected, rtol=0, atol=1e-6 * scale, err_msg=s)
     # The same samples as one continuous run (no join) would put a window across the boundary and
     # carry the first run's friction history into the second's start.
     glued = Predictor(Measured(**{**vars(Measured.stack(parts)), "joins": ()}), DESIGN, nthread=1)

@@ -368,9 +368,8 @@ def stacked_measured(recordings: list[Recording], window: float) -> Measured:
     """Several logs end to end on one time line, each cut to whole windows of ``window`` s.
 
     ``Predictor`` tiles each log afresh from its join (``Measured.joins``), so with every log a
-    whole number of windows long no window crosses a join; each log's velocities, paths and
-    internal-state histories start afresh (``Measured.stack``). (Inputs of a delayed window start may reach back across a join
-    by at most the delay, inside the excluded warm-up.)
+    whole number of windows long no window crosses a join; each log's velocities, paths,
+    internal-state histories and (delayed) input start afresh (``Measured.stack``).
     """
     parts = []
     for rec in recordings:

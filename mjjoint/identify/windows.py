@@ -458,7 +458,8 @@ class Predictor:
         averaged over [t - d, t - d + h].
 
         For d = 0 this is exactly the held sample; for d > 0 it is the torque a delayed hold
-        delivers over the step, continuous in d so the delay can be fitted by gradients.
+        delivers over the step, continuous in d so the delay can be fitted by gradients. Before
+        its recording's first sample (the start of the record or a join) the input is zero.
         """
         sub = self._substeps(model)
         h = model.opt.timestep
@@ -467,7 +468,10 @@ class Predictor:
         cum = np.concatenate([[0.0], np.cumsum(m.u) * period])  # integral of the held input
         knots = m.t[0] + period * np.arange(len(cum))
         tk = m.t[i0][:, None] + h * np.arange((n - 1) * sub)[None, :] - delay
-        u = (np.interp(tk + h, knots, cum) - np.interp(tk, knots, cum)) / h
+        # A delayed window at a join would otherwise take the previous recording's input.
+        first = np.array([a for a, _ in m.segments])
+        begin = m.t[first[np.searchsorted(first, i0, side="right") - 1]][:, None]
+        u = (np.interp(np.maximum(tk + h, begin), knots, cum) - np.interp(np.maximum(tk, begin), knots, cum)) / h
         ctrl = np.zeros((len(i0), (n - 1) * sub, model.nu))
         ctrl[:, :, ji.actuator] = u / ji.k_m
         return ctrl
