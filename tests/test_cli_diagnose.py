@@ -27,7 +27,7 @@ from mjjoint.excitation import Multisine
 from mjjoint.identify.effects import EFFECTS
 from mjjoint.identify.structure import Structure
 from mjjoint.joint import JointParams
-from mjjoint.modelfile import ModelFile, dump_model_file
+from mjjoint.modelfile import ModelFile, dump_model_file, load_model_file
 from mjjoint.sim import Simulator
 
 GEAR = 160.0
@@ -146,6 +146,16 @@ def test_when_nothing_is_missing_it_says_so(files, capsys):
     assert capsys.readouterr().out.startswith("verdict: nothing significant is missing")
     html = (out / "index.html").read_text()
     assert html.count("<img ") == 2 and "Step 1" not in html
+
+
+def test_diagnosis_exports_its_final_model(delayed_run, files):
+    """DIR/model.toml is the final model of diagnosis.json, as simulate --model reads it."""
+    out = delayed_run[0]
+    final = json.loads((out / "diagnosis.json").read_text())["final_model"]
+    nominal = load_model_file(files["model"]).arm
+    want = Structure.create(final["effects"], nominal, GEAR, final["parameters"], final["settings"]).model_params()
+    exported = load_model_file(out / "model.toml")
+    assert "input_delay" in final["effects"] and (exported.arm, exported.joint) == want
 
 
 def test_same_inputs_and_seed_give_identical_diagnosis_json(delayed_run, files):

@@ -552,8 +552,8 @@ def test_corrupt_container_is_rejected(tmp_path: Path, suffix: str) -> None:
 @pytest.mark.parametrize(
     ("header", "expected"),
     [
-        (b"MATLAB 7.3 MAT-file".ljust(124) + b"\x00\x02IM", "v7.3 (HDF5) files are not supported"),
-        (b"MATLAB 5.0 MAT-file".ljust(124) + b"\x00\x01XX", "no MAT v5 header"),
+        (b"MATLAB 7.3 MAT-file".ljust(124) + b"\x00\x02IM", "not a readable MATLAB v7.3 (HDF5) file"),
+        (b"MATLAB 5.0 MAT-file".ljust(124) + b"\x00\x01XX", "no MAT v5 or v7.3 header"),
         (b"MATLAB 5.0", "shorter than the 128-byte MAT header"),
     ],
 )

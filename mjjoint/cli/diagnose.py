@@ -25,9 +25,11 @@ examples:
   mjjoint diagnose rec.csv --gear-ratio 160 --candidates backlash,input_delay,torque_ripple
   mjjoint diagnose DATA_EMPS.mat --plant linear --columns t=t,u=vir,q=qm,theta=qm --scales u=35.15
   mjjoint diagnose arm.csv --model arm.toml --joint 1,2   each joint of a multi-joint recording
+  mjjoint diagnose friction_log.csv --friction-map          friction torque vs motion (t,q,tau)
 
 writes DIR/index.html (verdict, per-step evidence, figures), diagnosis.json (same inputs and
-seed give the same bytes), traces.rrd (measured, before and after; 'rerun traces.rrd'),
+seed give the same bytes), model.toml (the final model, for simulate --model), traces.rrd
+(measured, before and after; 'rerun traces.rrd'),
 PNGs and run.json (wall time); DIR appears only when complete. A multi-joint recording
 (u1,q1,theta1,tau1,u2,...) is diagnosed joint by joint into DIR/joint{{j}}/; DIR/diagnosis.json
 says which joints miss something ("mismatch_in") and DIR/index.html links the reports.
@@ -54,6 +56,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help=f"LM iterations of each full fit (default {OPTIONS.fit_iter})")
     d.add_argument("--screen-iter", type=int, default=OPTIONS.screen_iter, metavar="K",
                    help=f"LM iterations when screening a candidate (default {OPTIONS.screen_iter})")
+    d.add_argument("--friction-map", action="store_true",
+                   help="REC is a friction log (t, q, tau: friction torque against a prescribed motion): "
+                        "fit the friction effects to tau along the measured motion, no inertia; "
+                        "reports friction RMS [N m] before and after")
     p.set_defaults(handler=run)
 
 
@@ -74,6 +80,9 @@ def run(args: argparse.Namespace) -> int:
     from ..report.progress import StepLog
 
     options = options_from_args(args)
+    if args.friction_map:
+        from .friction_map import run as friction_map
+        return friction_map(args, options.candidates)
     out, problem = prepare(args)
     if not isinstance(problem, Problem):
         from .per_joint import diagnose_joints

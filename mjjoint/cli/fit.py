@@ -41,8 +41,10 @@ examples:
       --base coulomb_friction,viscous_friction,input_offset
   mjjoint fit arm.csv --gear-ratio 160,100 --joint 2            joint 2 of a multi-joint recording (u1,q1,...)
 
-writes DIR/fit.json (parameters, 95 % intervals, warnings, NRMSE), heldout_windows.png,
-residual.png, traces.rrd, index.html and run.json; DIR appears only when complete.
+writes DIR/fit.json (parameters, 95 % intervals, warnings, NRMSE), model.toml (the fitted model,
+for simulate --model), heldout_windows.png, residual.png, traces.rrd, index.html and run.json;
+DIR appears only when complete. Several recordings (REC1 REC2 ...) are fitted together as
+separate segments: no window spans two.
 
 A multi-joint recording (columns u1,q1,theta1,tau1,u2,...) is fitted joint by joint: DIR/joint{j}/
 holds each joint's files, DIR/fit.json and DIR/index.html gather them (docs/multijoint.md).
@@ -72,8 +74,10 @@ def joint_numbers(text: str) -> tuple[int, ...]:
 
 def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
     """Options shared by fit and diagnose: the recording, the starting model, windows, output."""
-    p.add_argument("recording", type=Path, metavar="REC",
-                   help="recording: .csv (t,u,q,theta[,tau]; several joints: t,u1,q1,theta1,...), .npz or .mat")
+    p.add_argument("recording", type=Path, nargs="+", metavar="REC",
+                   help="recording: .csv (t,u,q,theta[,tau]; several joints: t,u1,q1,theta1,...), .npz, .mat, "
+                        ".h5, .mcap or a ROS 2 bag folder; several single-joint recordings are stacked as "
+                        "separate segments (no window spans two)")
     r = p.add_argument_group("recording")
     r.add_argument("--gear-ratio", type=numbers, metavar="N",
                    help="gear ratio (required unless --model gives it); N1,N2,... one per joint")
@@ -209,9 +213,9 @@ class Problem:
     notes: list[str]
 
 
-def read_input(args: argparse.Namespace, gear_ratio: float | None, k_m: float | None):
-    """The recording named on the command line, with its column map and scales."""
-    return read_recording(args.recording,
+def read_input(args: argparse.Namespace, path: Path, gear_ratio: float | None, k_m: float | None):
+    """A recording named on the command line, with its column map and scales."""
+    return read_recording(path,
                           columns=None if args.columns is None else parse_column_map(args.columns),
                           scales=None if args.scales is None else parse_scales(args.scales),
                           gear_ratio=gear_ratio, k_m=k_m, allow_gaps=args.allow_gaps)
@@ -243,14 +247,31 @@ def load_problem(args: argparse.Namespace):
             raise CliError("--gear-ratio N is required (or a --model file that gives it)")
         effects = SEED_EFFECTS if args.base is None else effect_list(args.base)
         base = Structure.create(effects, ArmSpec(), args.gear_ratio)
-    rec = read_input(args, base.gear_ratio, args.k_m)
-    if not isinstance(rec, Recording):
-        return per_joint.load_problems(args, model, rec)
-    if rec.meta["resampled"] is not None:
-        notes.append(describe_resampling(rec.meta["resampled"]))
+    recs = [read_input(args, path, base.gear_ratio, args.k_m) for path in args.recording]
+    if len(recs) == 1 and not isinstance(recs[0], Recording):
+        return per_joint.load_problems(args, model, recs[0])
     design = window_design(args)
-    predictor = Predictor(Measured.from_recording(rec, base.gear_ratio), design)
-    return Problem(str(args.recording), predictor, base, notes)
+    predictor = Predictor(stacked(args, recs, base.gear_ratio, notes), design)
+    return Problem(source_label(args), predictor, base, notes)
+
+
+def source_label(args: argparse.Namespace) -> str:
+    """The recording(s) as given on the command line, for reports."""
+    return ", ".join(map(str, args.recording))
+
+
+def stacked(args: argparse.Namespace, recs: list, gear_ratio: float, notes: list[str], output: bool = True) -> Measured:
+    """The recordings on one time line, each its own segment (``Measured.stack``); their
+    resampling reported in ``notes``."""
+    several = len(recs) > 1
+    for path, rec in zip(args.recording, recs):
+        if not isinstance(rec, Recording):
+            raise CliError(f"{path}: holds several joints; only single-joint recordings are stacked "
+                           "(give a multi-joint recording alone)")
+        if rec.meta["resampled"] is not None:
+            notes.append(f"{path}: " * several + describe_resampling(rec.meta["resampled"]))
+    parts = [Measured.from_recording(rec, gear_ratio, output=output) for rec in recs]
+    return parts[0] if not several else Measured.stack(parts)
 
 
 def _drive_problem(args: argparse.Namespace) -> Problem:
@@ -260,12 +281,13 @@ def _drive_problem(args: argparse.Namespace) -> Problem:
     nominal = DriveSpec(joint_type=PLANTS[args.plant])
     effects = () if args.base is None else effect_list(args.base, known=plant_effects(nominal))
     base = Structure.create(effects, nominal, 1.0)
-    rec = read_input(args, 1.0, args.k_m)
-    if not isinstance(rec, Recording):
-        raise CliError(f"--plant {args.plant} takes a single-joint recording")
+    recs = [read_input(args, path, 1.0, args.k_m) for path in args.recording]
+    if not all(isinstance(rec, Recording) for rec in recs):
+        raise CliError(f"--plant {args.plant} takes single-joint recordings")
     design = window_design(args)
-    notes = [] if rec.meta["resampled"] is None else [describe_resampling(rec.meta["resampled"])]
-    return Problem(str(args.recording), Predictor(Measured.from_recording(rec, 1.0, output=False), design), base, notes)
+    notes: list[str] = []
+    measured = stacked(args, recs, 1.0, notes, output=False)
+    return Problem(source_label(args), Predictor(measured, design), base, notes)
 
 
 def window_design(args: argparse.Namespace) -> WindowDesign:
@@ -276,8 +298,8 @@ def window_design(args: argparse.Namespace) -> WindowDesign:
 
 def run_info(command: str, args: argparse.Namespace, problem: Problem) -> dict:
     """The invocation, for run.json (paths as given)."""
-    keep = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
-            if k not in ("handler", "command")}
+    keep = {k: (str(v) if isinstance(v, Path) else [str(x) for x in v] if k == "recording" else v)
+            for k, v in vars(args).items() if k not in ("handler", "command")}
     return {"command": command, "arguments": keep, "recording": problem.source,
             "windows": len(problem.predictor.starts), "heldout_windows": int(problem.predictor.holdout.sum())}
 

@@ -57,18 +57,22 @@ def one_per_joint(option: str, value, n: int) -> list:
 
 def load_problems(args: argparse.Namespace, model, rec: MultiRecording | Recording | None = None) -> JointProblems:
     """The selected joints' single-joint problems (one-line errors naming the joint)."""
+    if len(args.recording) > 1:
+        raise CliError("several recordings are stacked only when each holds one joint; "
+                       "--joint, lists of values and [[joint]] model files take one multi-joint recording")
+    path = args.recording[0]
     if rec is None:
-        rec = read_input(args, None, None if isinstance(args.k_m, tuple) else args.k_m)
+        rec = read_input(args, path, None, None if isinstance(args.k_m, tuple) else args.k_m)
         if isinstance(rec, MultiRecording) and isinstance(args.k_m, tuple):
             ks = one_per_joint("--k-m", args.k_m, rec.n_joints)
             rec = MultiRecording(tuple(r.with_columns(u=r.u * k) for r, k in zip(rec.joints, ks)), rec.meta)
     if not isinstance(rec, MultiRecording):
-        raise CliError(f"{args.recording}: holds one joint (columns t,u,q,theta); --joint, lists of values and "
+        raise CliError(f"{path}: holds one joint (columns t,u,q,theta); --joint, lists of values and "
                        "[[joint]] model files are for multi-joint recordings (columns u1,q1,theta1,...)")
     n = rec.n_joints
     joints = args.joint or tuple(range(1, n + 1))
     if max(joints) > n:
-        raise CliError(f"--joint {max(joints)}: {args.recording} holds {n} joints (1-{n})")
+        raise CliError(f"--joint {max(joints)}: {path} holds {n} joints (1-{n})")
     bases, notes = starting_models(args, model, n)
     design = window_design(args)
     problems = {}
@@ -78,8 +82,8 @@ def load_problems(args: argparse.Namespace, model, rec: MultiRecording | Recordi
             predictor = Predictor(Measured.from_recording(rec.joint(j), base.gear_ratio), design)
         except ValueError as exc:
             raise ValueError(f"joint {j}: {exc}") from None
-        problems[j] = Problem(f"{args.recording} joint {j}", predictor, base, [])
-    return JointProblems(str(args.recording), problems, [f"joint {j}: {m}" for j, m in notes if j in joints])
+        problems[j] = Problem(f"{path} joint {j}", predictor, base, [])
+    return JointProblems(str(path), problems, [f"joint {j}: {m}" for j, m in notes if j in joints])
 
 
 def starting_models(args: argparse.Namespace, model, n: int) -> tuple[list[Structure], list[tuple[int, str]]]:

@@ -361,13 +361,15 @@ class EncoderPredictor(Predictor):
         self.meas["delta"] = None
 
 
+CUT = ("t", "u", "q", "theta", "qd", "thetad")  # a log's per-sample arrays (no tau)
+
+
 def stacked_measured(recordings: list[Recording], window: float) -> Measured:
     """Several logs end to end on one time line, each cut to whole windows of ``window`` s.
 
     ``Predictor`` tiles each log afresh from its join (``Measured.joins``), so with every log a
-    whole number of windows long no window crosses a join; each log's velocities are
-    differentiated on its own. (Inputs of a delayed window start may reach back across a join
-    by at most the delay, inside the excluded warm-up.)
+    whole number of windows long no window crosses a join; each log's velocities, paths,
+    internal-state histories and (delayed) input start afresh (``Measured.stack``).
     """
     parts = []
     for rec in recordings:
@@ -376,15 +378,8 @@ def stacked_measured(recordings: list[Recording], window: float) -> Measured:
         keep = (len(m.t) // n) * n
         if keep < n:
             raise ValueError(f"{rec.meta.get('source', 'recording')}: shorter than one {window} s window")
-        parts.append((m, keep))
-    rate = parts[0][0].rate
-    if any(abs(m.rate - rate) > 1e-6 * rate for m, _ in parts):
-        raise ValueError("the logs to stack must share one sampling rate")
-    cat = lambda k: np.concatenate([getattr(m, k)[:keep] for m, keep in parts])
-    n_total = sum(keep for _, keep in parts)
-    joins = tuple(np.cumsum([keep for _, keep in parts])[:-1].tolist())
-    return Measured(t=np.arange(n_total) / rate, u=cat("u"), q=cat("q"), theta=cat("theta"), tau=None,
-                    qd=cat("qd"), thetad=cat("thetad"), gear_ratio=GEAR_RATIO, rate=rate, joins=joins)
+        parts.append(dataclasses.replace(m, **{k: getattr(m, k)[:keep] for k in CUT}))
+    return Measured.stack(parts)
 
 
 def predictor(recordings: list[Recording], window: float = 0.2, warmup: float = 0.02, seed: int = 0,

@@ -20,6 +20,7 @@ any periodic pattern can alias with a periodic excitation (a step every 0.5 s an
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -116,12 +117,23 @@ class Measured:
     def delta(self) -> np.ndarray | None:
         return None if self.theta is None else self.q / self.gear_ratio - self.theta
 
+    @property
+    def segments(self) -> list[tuple[int, int]]:
+        """(first, end) sample of each recording stacked here (one pair for a single recording)."""
+        bounds = [0, *self.joins, len(self.t)]
+        return list(zip(bounds[:-1], bounds[1:]))
+
+    def per_segment(self, f, x: np.ndarray) -> np.ndarray:
+        """``f`` applied to each segment of ``x`` on its own: no filter or operator runs across a join."""
+        return np.concatenate([f(x[a:b]) for a, b in self.segments])
+
     @cached_property
     def delta_path(self) -> np.ndarray | None:
         """The deflection through the Savitzky-Golay filter the velocities come from: a
         quantised encoder's steps are tiny reversals that would ratchet a hysteresis state."""
         d = self.delta
-        return None if d is None else savgol_filter(d, _sg_window(1.0 / self.rate), VELOCITY_ORDER)
+        win = _sg_window(1.0 / self.rate)
+        return None if d is None else self.per_segment(lambda x: savgol_filter(x, win, VELOCITY_ORDER), d)
 
     @cached_property
     def q_noise(self) -> float:
@@ -132,7 +144,7 @@ class Measured:
         15-bit resolver it returns the quantisation step / sqrt(12) within 10 %.
         """
         win = _sg_window(1.0 / self.rate)
-        r = self.q - savgol_filter(self.q, win, VELOCITY_ORDER)
+        r = self.q - self.per_segment(lambda x: savgol_filter(x, win, VELOCITY_ORDER), self.q)
         follow = savgol_coeffs(win, VELOCITY_ORDER)[win // 2]
         return float(1.4826 * np.median(np.abs(r - np.median(r))) / np.sqrt(1.0 - follow))
 
@@ -140,7 +152,7 @@ class Measured:
     def q_path(self) -> np.ndarray:
         """The motor angle with retraces within its noise band removed (REVERSAL_BAND): the path
         2SEP's history runs along, so that encoder chatter at rest is no reversal."""
-        return _play(self.q, REVERSAL_BAND * self.q_noise)
+        return self.per_segment(lambda x: _play(x, REVERSAL_BAND * self.q_noise), self.q)
 
     @classmethod
     def from_recording(cls, rec, gear_ratio: float, output: bool = True) -> "Measured":
@@ -154,10 +166,30 @@ class Measured:
         cols = {k: None if getattr(rec, k, None) is None else np.interp(grid, t, np.asarray(getattr(rec, k), float))
                 for k in names}
         cols.setdefault("theta", None)
-        win = _sg_window(dt)
-        deriv = lambda x: None if x is None else savgol_filter(x, win, VELOCITY_ORDER, deriv=1, delta=dt)  # noqa: E731
+        deriv = lambda x: None if x is None else velocity(x, dt)  # noqa: E731
         return cls(t=grid, qd=deriv(cols["q"]), thetad=deriv(cols["theta"]),
                    gear_ratio=float(gear_ratio), rate=1.0 / dt, **cols)
+
+    @classmethod
+    def stack(cls, parts: Sequence["Measured"]) -> "Measured":
+        """Several recordings end to end on one uniform time line, kept apart as segments
+        (``joins``): no window spans two, and each one's velocities, paths, internal-state
+        history and lead-ins start afresh as at a recording's start (``Predictor``)."""
+        first = parts[0]
+        for k, m in enumerate(parts[1:], start=2):
+            if abs(m.rate - first.rate) > 1e-6 * first.rate:
+                raise ValueError(f"recordings to stack must share one sample rate: recording 1 has "
+                                 f"{first.rate:.6g} Hz, recording {k} {m.rate:.6g} Hz")
+            if (m.theta is None) != (first.theta is None) or (m.tau is None) != (first.tau is None):
+                raise ValueError(f"recordings to stack must hold the same signals (theta, tau): recording {k} differs")
+            if m.gear_ratio != first.gear_ratio:
+                raise ValueError(f"recordings to stack must share one gear ratio: {first.gear_ratio:g}, {m.gear_ratio:g}")
+        cat = lambda k: None if getattr(first, k) is None else np.concatenate([getattr(m, k) for m in parts])  # noqa: E731
+        offsets = np.cumsum([0, *(len(m.t) for m in parts)])
+        joins = tuple(int(o + j) for m, o in zip(parts, offsets) for j in (*m.joins, len(m.t)))[:-1]
+        return cls(t=first.t[0] + np.arange(offsets[-1]) / first.rate, u=cat("u"), q=cat("q"), theta=cat("theta"),
+                   tau=cat("tau"), qd=cat("qd"), thetad=cat("thetad"), gear_ratio=first.gear_ratio,
+                   rate=first.rate, joins=joins)
 
 
 def _play(x: np.ndarray, eps: float) -> np.ndarray:
@@ -205,6 +237,11 @@ def _window_starts(total: int, n: int, u: np.ndarray, half: int, max_shift: int,
             starts.append(s)
             s += n
     return np.array(starts, dtype=int)
+
+
+def velocity(x: np.ndarray, dt: float) -> np.ndarray:
+    """The derivative of a uniformly sampled signal, the Savitzky-Golay one of window starts."""
+    return savgol_filter(x, _sg_window(dt), VELOCITY_ORDER, deriv=1, delta=dt)
 
 
 def _sg_window(dt: float) -> int:
@@ -355,17 +392,23 @@ class Predictor:
         states = _steady_internal_states(ji.block, m.qd[i0], delta)
         # The internal states are the model's memory of the motion, run from the recording's
         # first sample (on its steady branches) to each window start by the plugin's kernels.
-        start = _steady_internal_states(ji.block, m.qd[:1], np.zeros(1) if m.delta is None else m.delta_path[:1])[0]
+        # Each stacked recording's history starts afresh at its first sample.
+        firsts = np.array([a for a, _ in m.segments])
+        start = _steady_internal_states(ji.block, m.qd[firsts],
+                                        np.zeros(len(firsts)) if m.delta is None else m.delta_path[firsts])
         if ji.block[FKIND] == FRICTION_2SEP:
             # 2SEP (last reversal, pre-sliding, lag) along the measured motor angle, its noise
             # chatter removed (REVERSAL_BAND), not guessed from the velocity's sign: the step
             # velocity is the path's displacement per sample.
-            w = np.diff(m.q_path, prepend=m.q_path[0]) * m.rate
-            states[:, :X] = friction_history(ji.block, w, 1.0 / m.rate, start)[i0, :X]
+            history = np.concatenate([
+                friction_history(ji.block, np.diff(m.q_path[a:b], prepend=m.q_path[a]) * m.rate, 1.0 / m.rate, s0)
+                for (a, b), s0 in zip(m.segments, start)])
+            states[:, :X] = history[i0, :X]
         if ji.block[HYST] != 0.0 and m.delta is not None:
             # Bouc-Wen x along the measured deflection (rate independent: the path fixes it); the
             # loading-branch guess can be off by the whole loop for the entire window.
-            states[:, X] = hysteresis_history(ji.block, m.delta_path, start[X])[i0]
+            states[:, X] = np.concatenate([hysteresis_history(ji.block, m.delta_path[a:b], s0[X])
+                                           for (a, b), s0 in zip(m.segments, start)])[i0]
         x0[:, ji.state_start:ji.state_start + NSTATE] = states
         return x0
 
@@ -415,7 +458,8 @@ class Predictor:
         averaged over [t - d, t - d + h].
 
         For d = 0 this is exactly the held sample; for d > 0 it is the torque a delayed hold
-        delivers over the step, continuous in d so the delay can be fitted by gradients.
+        delivers over the step, continuous in d so the delay can be fitted by gradients. Before
+        its recording's first sample (the start of the record or a join) the input is zero.
         """
         sub = self._substeps(model)
         h = model.opt.timestep
@@ -424,7 +468,10 @@ class Predictor:
         cum = np.concatenate([[0.0], np.cumsum(m.u) * period])  # integral of the held input
         knots = m.t[0] + period * np.arange(len(cum))
         tk = m.t[i0][:, None] + h * np.arange((n - 1) * sub)[None, :] - delay
-        u = (np.interp(tk + h, knots, cum) - np.interp(tk, knots, cum)) / h
+        # A delayed window at a join would otherwise take the previous recording's input.
+        first = np.array([a for a, _ in m.segments])
+        begin = m.t[first[np.searchsorted(first, i0, side="right") - 1]][:, None]
+        u = (np.interp(np.maximum(tk + h, begin), knots, cum) - np.interp(np.maximum(tk, begin), knots, cum)) / h
         ctrl = np.zeros((len(i0), (n - 1) * sub, model.nu))
         ctrl[:, :, ji.actuator] = u / ji.k_m
         return ctrl

@@ -72,19 +72,7 @@ class ArrayTable:
         """The 1-D float64 signal `name` (see the module's forms) used as `role`."""
         pick = parse_pick(name, f"{self.file}: source {quote(name)} (for {role})")
         what = f"{self.file}: variable {quote(pick.path)} (for {role})"
-        x = self._lookup(pick.path, what)
-        if x.dtype.names:
-            raise RecordingError(f"{what} is a struct with fields {listing(x.dtype.names)}; pick one with {pick.path}.FIELD")
-        if x.dtype.kind not in "iuf":
-            raise RecordingError(f"{what} is not a real numeric array (dtype {x.dtype})")
-        if pick.index is not None:
-            x = _take(x, pick, what)
-        elif x.ndim == 2 and 1 in x.shape:
-            x = x.ravel()  # MATLAB stores every vector as N×1 or 1×N
-        if x.ndim != 1:
-            hint = f"; pick a column with {pick.path}[:, j] or a row with {pick.path}[i, :]" if x.ndim == 2 else ""
-            raise RecordingError(f"{what} has shape {x.shape}, expected a vector{hint}")
-        return x.astype(np.float64)
+        return as_signal(self._lookup(pick.path, what), pick, what)
 
     def _lookup(self, path: str, what: str) -> np.ndarray:
         """The variable `path`, or the field it names inside a (nested) MATLAB struct."""
@@ -103,6 +91,22 @@ class ArrayTable:
                 raise RecordingError(f"{what}: struct {quote(walked)} has no field {quote(f)}; fields: {listing(x.dtype.names)}")
             x, walked = np.asarray(x.flat[0][f]), f"{walked}.{f}"
         return x
+
+
+def as_signal(x: np.ndarray, pick: Pick, what: str) -> np.ndarray:
+    """The 1-D float64 signal `pick` selects from the array `x` (a variable, a dataset)."""
+    if x.dtype.names:
+        raise RecordingError(f"{what} is a struct with fields {listing(x.dtype.names)}; pick one with {pick.path}.FIELD")
+    if x.dtype.kind not in "iuf":
+        raise RecordingError(f"{what} is not a real numeric array (dtype {x.dtype})")
+    if pick.index is not None:
+        x = _take(x, pick, what)
+    elif x.ndim == 2 and 1 in x.shape:
+        x = x.ravel()  # MATLAB stores every vector as N×1 or 1×N
+    if x.ndim != 1:
+        hint = f"; pick a column with {pick.path}[:, j] or a row with {pick.path}[i, :]" if x.ndim == 2 else ""
+        raise RecordingError(f"{what} has shape {x.shape}, expected a vector{hint}")
+    return x.astype(np.float64)
 
 
 def _take(x: np.ndarray, pick: Pick, what: str) -> np.ndarray:

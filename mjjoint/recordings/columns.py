@@ -91,11 +91,14 @@ def parse_scales(text: str) -> dict[str, float]:
     return check_scales({k: DEG if v.lower() == "deg" else v for k, v in pairs.items()}, "--scales")
 
 
-def resolve_columns(available: Sequence[str], columns: Mapping[str, str], where: str, kind: str) -> dict[str, str]:
+def resolve_columns(available: Sequence[str], columns: Mapping[str, str], where: str, kind: str,
+                    single: Sequence[str] = SIGNALS, optional: Collection[str] = OPTIONAL) -> dict[str, str]:
     """Canonical name -> source name for every signal the file provides.
 
     The layout (single or several joints) follows from the mapped names and from the
     file's names that are canonical already. `kind` is 'column' or 'variable', for messages.
+    `single`: the signals of a single joint's layout, `optional` those it may lack (a friction
+    log: t, q, tau, all required).
     """
     names = set(columns) | {a for a in available if is_canonical(a)}
     joints = {j for n in names if (j := split_joint(n)[1]) is not None}
@@ -104,8 +107,8 @@ def resolve_columns(available: Sequence[str], columns: Mapping[str, str], where:
         raise RecordingError(f"{where}: mixes single-joint names ({', '.join(singles)}) with per-joint names (u1, q1, ...)")
     if joints and sorted(joints) != list(range(1, max(joints) + 1)):
         raise RecordingError(f"{where}: joints must be numbered 1, 2, ... without gaps; found {sorted(joints)}")
-    wanted = ["t", *(f"{s}{j}" for j in sorted(joints) for s in JOINT_SIGNALS)] if joints else list(SIGNALS)
-    missing = [w for w in wanted if w not in names and split_joint(w)[0] not in OPTIONAL]
+    wanted = ["t", *(f"{s}{j}" for j in sorted(joints) for s in JOINT_SIGNALS)] if joints else list(single)
+    missing = [w for w in wanted if w not in names and split_joint(w)[0] not in optional]
     if missing:
         raise RecordingError(
             f"{where}: missing required {kind}(s) {', '.join(missing)}; {kind}s present: {listing(available)}; "

@@ -24,17 +24,24 @@ _COMPLEX_FLAG = 0x0800
 _MAX_DEPTH = 64  # nesting beyond this is corruption, and would exhaust the reader's stack
 
 
-def check_mat_v5(data: bytes) -> None:
-    """Raise ValueError naming the first structural problem of a MAT v5 file's bytes."""
+MAT_V5, MAT_V73 = 0x0100, 0x0200  # header versions: v5 (save -v6/-v7) and v7.3 (HDF5 inside)
+
+
+def mat_version(data: bytes) -> int:
+    """The version word of a MAT file's 128-byte header; ValueError if there is no header."""
     if len(data) < 128:
         raise ValueError("shorter than the 128-byte MAT header")
     order = {b"IM": "<", b"MI": ">"}.get(data[126:128])
     if order is None:
-        raise ValueError("no MAT v5 header (MATLAB v4 files are not supported)")
-    version = struct.unpack_from(order + "H", data, 124)[0]
-    if version == 0x0200:
-        raise ValueError("MATLAB v7.3 (HDF5) files are not supported; re-save with save(..., '-v7')")
-    if version != 0x0100:
+        raise ValueError("no MAT v5 or v7.3 header (MATLAB v4 files are not supported)")
+    return struct.unpack_from(order + "H", data, 124)[0]
+
+
+def check_mat_v5(data: bytes) -> None:
+    """Raise ValueError naming the first structural problem of a MAT v5 file's bytes."""
+    version = mat_version(data)
+    order = "<" if data[126:128] == b"IM" else ">"
+    if version != MAT_V5:
         raise ValueError(f"unknown MAT version 0x{version:04x}")
     for code, body in _elements(memoryview(data)[128:], order, padded=False):
         if code == _COMPRESSED:

@@ -1,4 +1,4 @@
-"""Reading MATLAB v5 .mat files (scipy.io.loadmat), top-level variables only."""
+"""Reading .mat files: v5 (scipy.io.loadmat) and v7.3, which is HDF5 (h5_io)."""
 
 from __future__ import annotations
 
@@ -10,16 +10,19 @@ import scipy.io
 
 from .arrays import ArrayTable
 from .errors import RecordingError
-from .mat_guard import check_mat_v5
+from .h5_io import H5Table, read_h5_table
+from .mat_guard import MAT_V73, check_mat_v5, mat_version
 
 
-def read_mat_table(path: Path) -> ArrayTable:
+def read_mat_table(path: Path) -> ArrayTable | H5Table:
     """All top-level variables of a .mat file; the file is only read."""
     try:
         data = path.read_bytes()
     except OSError as exc:
         raise RecordingError(f"{path}: cannot read ({exc.strerror or exc})") from None
     try:
+        if mat_version(data) == MAT_V73:
+            return read_h5_table(path, matlab=True)
         check_mat_v5(data)
     except ValueError as exc:
         raise RecordingError(f"{path}: not a readable MATLAB v5 file: {exc}") from None

@@ -1,4 +1,4 @@
-"""`read_recording`: load a .csv, .npz or .mat file, map and scale its columns, check them."""
+"""`read_recording`: load a .csv, .npz, .mat, HDF5 file or a robot log, map and scale its columns, check them."""
 
 from __future__ import annotations
 
@@ -9,9 +9,11 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .columns import ALLOWED, check_column_map, check_scales, expand_scales, resolve_columns, split_joint
+from .columns import ALLOWED, OPTIONAL, SIGNALS, check_column_map, check_scales, expand_scales, resolve_columns, split_joint
 from .csv_io import read_csv_table
 from .errors import RecordingError, listing
+from .h5_io import read_h5_table
+from .log_io import CLOCKS, LogTable, is_log_folder, read_log_table
 from .mat_io import read_mat_table
 from .model import MultiRecording, Recording
 from .npz_io import read_npz_table
@@ -32,6 +34,9 @@ _LOADERS: dict[str, Callable[[Path], _Table]] = {
     ".csv": read_csv_table,
     ".npz": read_npz_table,
     ".mat": read_mat_table,
+    ".h5": read_h5_table,
+    ".hdf5": read_h5_table,
+    ".mcap": read_log_table,
 }
 
 
@@ -70,27 +75,60 @@ def read_recording(
     allow_gaps: interpolate across steps longer than 5 median periods instead of refusing.
     Several joints (u1, q1, theta1, ...) give a MultiRecording. Raises RecordingError.
     """
+    signals, meta = read_signals(path, columns, scales, k_m, allow_extra=allow_extra, allow_gaps=allow_gaps,
+                                 timestep=timestep)
+    return _build(signals, _positive("gear_ratio", gear_ratio), meta)
+
+
+def read_signals(
+    path: str | Path,
+    columns: Mapping[str, str] | None = None,
+    scales: Mapping[str, float] | None = None,
+    k_m: float | None = None,
+    *,
+    allow_extra: bool = False,
+    allow_gaps: bool = False,
+    timestep: float | None = None,
+    layout: Sequence[str] = SIGNALS,
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """(signals by canonical name, meta) of a file, checked and on a uniform grid, as
+    `read_recording` reads them; `layout`: a single joint's signals, all of them required
+    unless they are the recording's own (SIGNALS, tau optional), e.g. ('t', 'q', 'tau') for a
+    friction log."""
     where, path = str(path), Path(path)
     columns = check_column_map(columns or {})
     scales = check_scales(scales or {})
-    gear_ratio, k_m = _positive("gear_ratio", gear_ratio), _positive("k_m", k_m)
+    k_m = _positive("k_m", k_m)
     timestep = _positive("timestep", timestep)
     if not path.exists():
         raise RecordingError(f"{where}: no such file")
-    if not path.is_file():
-        raise RecordingError(f"{where}: not a regular file")
-    loader = _LOADERS.get(path.suffix.lower())
+    if is_log_folder(path):
+        loader = read_log_table
+    elif not path.is_file():
+        raise RecordingError(f"{where}: not a regular file (nor a ROS 2 bag folder with metadata.yaml)")
+    else:
+        loader = _LOADERS.get(path.suffix.lower())
     if loader is None:
-        raise RecordingError(f"{where}: unsupported file type {path.suffix!r}; expected {', '.join(_LOADERS)}")
-    if path.stat().st_size == 0:
+        raise RecordingError(f"{where}: unsupported file type {path.suffix!r}; expected {', '.join(_LOADERS)} "
+                             "or a ROS 2 bag folder")
+    if path.is_file() and path.stat().st_size == 0:
         raise RecordingError(f"{where}: empty file")
 
     table = loader(path)
-    sources = resolve_columns(table.names, columns, where, table.kind)
+    if isinstance(table, LogTable):
+        columns = {"t": CLOCKS[0], **columns}  # a log's time is a choice of clock, not a topic
+    layout = tuple(layout)
+    sources = resolve_columns(table.names, columns, where, table.kind, layout,
+                              OPTIONAL if layout == SIGNALS else ())
     factors = expand_scales(scales, sources, where)
+    merged = None
+    if isinstance(table, LogTable):
+        raw, merged = table.merged(sources, timestep, allow_gaps)
+    else:
+        raw = {name: table.column(source, name) for name, source in sources.items()}
     signals = {}
-    for name, source in sources.items():
-        x = table.column(source, name) * factors.get(name, 1.0)
+    for name, x in raw.items():
+        x = x * factors.get(name, 1.0)
         signals[name] = x * k_m if k_m is not None and split_joint(name)[0] == "u" else x
     # After the lookups above, so that a mistyped mapping is reported as such, not as an unused column.
     if table.strict and not allow_extra:
@@ -104,9 +142,9 @@ def read_recording(
     check_signals(signals, Context(where, sources, table.lines), allow_gaps)
     signals, resampled = to_uniform_grid(signals, timestep)
 
-    meta = {"source": where, "format": path.suffix.lower()[1:], "columns": sources, "scales": factors, "k_m": k_m,
-            "resampled": resampled}
-    return _build(signals, gear_ratio, meta)
+    meta = {"source": where, "format": "rosbag2" if path.is_dir() else path.suffix.lower()[1:], "columns": sources,
+            "scales": factors, "k_m": k_m, "resampled": merged or resampled}
+    return signals, meta
 
 
 def _build(signals: dict[str, np.ndarray], gear_ratio: float | None, meta: dict[str, Any]) -> Recording | MultiRecording:

@@ -86,8 +86,38 @@ def to_uniform_grid(
     return out, report
 
 
+def merge_streams(
+    streams: Mapping[str, tuple[np.ndarray, np.ndarray]], timestep: float | None = None
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """Signals each with its own timestamps (name -> (t, x), t increasing) onto one uniform grid.
+
+    The grid's period is the fastest stream's nominal period (as `to_uniform_grid`), its span
+    the time all streams cover; every signal is interpolated linearly onto it, so a slower
+    stream comes back as straight lines between its samples (held for none of them). The
+    report names the method, the rate and each stream's own rate.
+    """
+    rates = {name: 1.0 / clock_estimate(t)[0] for name, (t, _) in streams.items()}
+    t = streams[max(rates, key=rates.get)][0]
+    mean_step, jitter = clock_estimate(t)
+    dt = nominal_period(mean_step, timestep, max(4 * jitter / (t[-1] - t[0]), STEP_TOLERANCE))
+    start, end = max(t[0] for t, _ in streams.values()), min(t[-1] for t, _ in streams.values())
+    if end - start < dt:
+        spans = ", ".join(f"{name} [{t[0]:.6g}, {t[-1]:.6g}] s" for name, (t, _) in streams.items())
+        raise ValueError(f"the signals do not overlap in time ({spans})")
+    n = int(np.floor((end - start) / dt + 1e-9)) + 1
+    grid = start + np.arange(n) * dt
+    out = {"t": grid, **{name: np.interp(grid, t, x) for name, (t, x) in streams.items()}}
+    report = {"method": "linear interpolation", "rate": 1.0 / dt, "period": dt, "samples_out": n,
+              "span": [float(start), float(grid[-1])], "stream_rates": rates}
+    return out, report
+
+
 def describe(report: Mapping[str, Any]) -> str:
-    """One line for the user and the run record: how a recording was resampled."""
+    """One line for the user and the run record: how a recording was resampled or merged."""
+    if "stream_rates" in report:
+        rates = ", ".join(f"{name} {rate:.4g} Hz" for name, rate in report["stream_rates"].items())
+        return (f"signals logged at their own rates ({rates}) merged by {report['method']} onto "
+                f"{report['rate']:.6g} Hz ({report['samples_out']} samples over the {report['span'][1] - report['span'][0]:.6g} s they all cover)")
     return (
         f"timestamps not uniform: resampled by {report['method']} onto {report['rate']:.6g} Hz "
         f"({report['samples_in']} -> {report['samples_out']} samples; timestamps deviate up to "

@@ -71,12 +71,13 @@ def check_signals(signals: Mapping[str, np.ndarray], ctx: Context, allow_gaps: b
             raise ctx.error(
                 f"column {ctx.column(name)} has {float(x[i])!r} at {ctx.sample(i)} ({bad.size} non-finite value(s))"
             )
-    _check_time(t, ctx, allow_gaps)
+    check_time(t, ctx, allow_gaps)
     for name, x in signals.items():
         _check_magnitude(name, x, t, ctx)
 
 
-def _check_time(t: np.ndarray, ctx: Context, allow_gaps: bool) -> None:
+def check_time(t: np.ndarray, ctx: Context, allow_gaps: bool) -> None:
+    """Time strictly increasing, in seconds by its median period, without gaps unless allowed."""
     # Extreme but finite times overflow to inf here; the period checks below then report them.
     with np.errstate(over="ignore"):
         d = np.diff(t)

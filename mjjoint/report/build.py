@@ -8,10 +8,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..assets import ArmSpec
 from ..diagnosis.loop import Diagnosis
 from ..identify.fit import FitResult
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
+from ..modelfile import dump_model_file
 from .compare import compare, worst_signal
 from .evidence import plot_evidence
 from .html import diagnosis_page, fit_page
@@ -28,12 +30,26 @@ def model_labels(n_steps: int) -> list[str]:
     return ["before", *(f"after_step{k}" for k in range(1, n_steps)), "after"]
 
 
+MODEL_FILE = "model.toml"
+
+
+def write_model(folder: Path, structure: Structure, rate: float) -> list[Path]:
+    """The fitted model as a model file that ``mjjoint simulate --model`` (and ``--model`` of fit
+    and diagnose) takes back, at the recording's sample rate; none for a direct drive, which
+    model files do not describe."""
+    plant, joint = structure.model_params()
+    if not isinstance(plant, ArmSpec):
+        return []
+    return [dump_model_file(folder / MODEL_FILE, plant, joint, sample_rate=rate)]
+
+
 def write_diagnosis(folder: Path, predictor: Predictor, diag: Diagnosis, source: str, run: dict) -> dict:
     """Every file of a diagnosis in ``folder``; returns the diagnosis.json data."""
     data = diag.as_dict()  # holds no wall time: that goes to run.json
     files = [write_json(folder / "diagnosis.json", data)]
     labels = model_labels(len(diag.steps))
     structures = [r.structure for r in diag.history] if diag.steps else [diag.initial.structure]
+    files += write_model(folder, structures[-1], predictor.m.rate)
     cmp = compare(predictor, dict(zip(labels, structures)))
     signal = worst_signal(diag.initial.nrmse_test, predictor.signals)
     overview = [labels[0], labels[-1]] if diag.steps else labels
@@ -62,7 +78,7 @@ def write_fit(folder: Path, predictor: Predictor, result: FitResult, initial: St
               run: dict) -> dict:
     """Every file of a fit in ``folder``; returns the fit.json data."""
     data = result.as_dict()
-    files = [write_json(folder / "fit.json", data)]
+    files = [write_json(folder / "fit.json", data), *write_model(folder, result.structure, predictor.m.rate)]
     cmp = compare(predictor, {"initial": initial, "fitted": result.structure})
     signal = worst_signal(result.nrmse_test, predictor.signals)
     labels = ["initial", "fitted"]
