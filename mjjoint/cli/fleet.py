@@ -82,17 +82,14 @@ def _arguments(args: argparse.Namespace, entry: Entry) -> dict:
     return arguments
 
 
-def fleet_folder(path: Path) -> Path:
-    """DIR checked and created; an existing one must be empty or a fleet folder already."""
+def check_fleet_folder(path: Path) -> None:
+    """DIR may be written: absent, empty or a fleet folder already (created once the fleet is read)."""
     if path.exists() and not path.is_dir():
         raise CliError(f"--out {path}: exists and is not a folder")
     if path.is_dir() and any(path.iterdir()) and not (path / FLEET_MARK).is_file():
         raise CliError(f"--out {path}: folder exists and is not an mjjoint fleet output (no {FLEET_MARK}); "
                        "choose another --out or empty it")
     check_destination(path, "--out")
-    path.mkdir(parents=True, exist_ok=True)
-    (path / FLEET_MARK).touch()
-    return path.absolute()
 
 
 def _engine(args: argparse.Namespace, tasks: list[Task]) -> tuple[engines.Done, str]:
@@ -120,12 +117,14 @@ def run_fleet(args: argparse.Namespace, options: DiagnoseOptions) -> int:
         raise CliError(f"--workers {args.workers} must be at least 1")
     if args.workers is not None and args.scheduler is not None:
         raise CliError("--workers is for the local pool; with --scheduler the cluster's workers do the work")
-    entries = resolve(args.recording)
-    out = fleet_folder(args.out)
+    out = Path(args.out).absolute()
+    check_fleet_folder(out)
     tasks = []
-    for entry in entries:
+    for entry in resolve(args.recording):
         arguments = _arguments(args, entry)
         tasks.append(Task(entry.name, arguments, out / entry.name, input_hash(arguments)))
+    out.mkdir(parents=True, exist_ok=True)
+    (out / FLEET_MARK).touch()
     results: dict[str, list[dict]] = {}
     if not args.force:
         for task in tasks:

@@ -57,6 +57,7 @@ def connect(address: str):
 
 
 def dask_cluster(tasks: Sequence[Task], client) -> Done:
+    """The tasks on the cluster of ``client`` (from ``connect``), which is closed at the end."""
     from distributed import as_completed as dask_completed
 
     # Keys name the recording and its inputs: a rerun with new inputs is a new computation.
@@ -71,3 +72,4 @@ def dask_cluster(tasks: Sequence[Task], client) -> Done:
                 yield task, _lost(task, exc)
     finally:
         client.cancel(list(futures))
+        client.close()
