@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
 
     options = options_from_args(args)
     if is_fleet(args.recording):
-        return run_fleet(args, options)
+        return run_fleet(args)  # options checked above; each recording's own are rebuilt by its task
     check_single(args)
     out, problem = prepare(args)
     if not isinstance(problem, Problem):

@@ -15,11 +15,10 @@ import sys
 import time
 from pathlib import Path
 
-from ..diagnosis.loop import DiagnoseOptions
 from ..fleet import engines
 from ..fleet.inputs import Entry, resolve
 from ..fleet.task import FIELDS, Task, finished, input_hash, rows
-from ..report.output import check_destination
+from ..report.output import check_folder
 from .errors import CliError
 from .fit import PLANTS, joint_numbers, numbers
 
@@ -82,16 +81,6 @@ def _arguments(args: argparse.Namespace, entry: Entry) -> dict:
     return arguments
 
 
-def check_fleet_folder(path: Path) -> None:
-    """DIR may be written: absent, empty or a fleet folder already (created once the fleet is read)."""
-    if path.exists() and not path.is_dir():
-        raise CliError(f"--out {path}: exists and is not a folder")
-    if path.is_dir() and any(path.iterdir()) and not (path / FLEET_MARK).is_file():
-        raise CliError(f"--out {path}: folder exists and is not an mjjoint fleet output (no {FLEET_MARK}); "
-                       "choose another --out or empty it")
-    check_destination(path, "--out")
-
-
 def _engine(args: argparse.Namespace, tasks: list[Task]) -> tuple[engines.Done, str]:
     if args.scheduler is not None:
         client = engines.connect(args.scheduler)
@@ -108,41 +97,51 @@ def _duration(seconds: float) -> str:
     return f"{minutes} min {s} s" if minutes else f"{s} s"
 
 
-def run_fleet(args: argparse.Namespace, options: DiagnoseOptions) -> int:
+def _kept(task: Task) -> list[dict] | None:
+    """The rows of the task's report from an earlier run, if it is finished and readable."""
+    if not finished(task):
+        return None
+    try:
+        return rows(task, reused=True)
+    except (OSError, ValueError, KeyError):  # damaged by hand: diagnose it again
+        return None
+
+
+def _collect(done: engines.Done, n: int, results: dict[str, list[dict]]) -> None:
+    """Each recording's rows as it finishes, with a progress line and the time left at this rate."""
+    start = time.perf_counter()
+    for k, (task, task_rows) in enumerate(done, 1):
+        results[task.name] = task_rows
+        elapsed = time.perf_counter() - start
+        status = "ok" if task_rows[0]["status"] == "ok" else f"failed: {task_rows[0]['error']}"
+        left = f"; about {_duration(elapsed / k * (n - k))} left" if k < n else ""
+        print(f"recording {k} of {n}: {task.name} {status} ({_duration(elapsed)} elapsed{left})",
+              file=sys.stderr, flush=True)
+
+
+def run_fleet(args: argparse.Namespace) -> int:
     """Diagnose every recording of the fleet; write DIR/fleet.csv and DIR/index.html."""
     from ..report.fleet import CSV_NAME, write_fleet
 
-    del options  # checked up front by the caller; each task rebuilds its own from its arguments
     if args.workers is not None and args.workers < 1:
         raise CliError(f"--workers {args.workers} must be at least 1")
     if args.workers is not None and args.scheduler is not None:
         raise CliError("--workers is for the local pool; with --scheduler the cluster's workers do the work")
     out = Path(args.out).absolute()
-    check_fleet_folder(out)
+    check_folder(out, FLEET_MARK, "an mjjoint fleet output")
     tasks = []
     for entry in resolve(args.recording):
         arguments = _arguments(args, entry)
         tasks.append(Task(entry.name, arguments, out / entry.name, input_hash(arguments)))
-    out.mkdir(parents=True, exist_ok=True)
-    (out / FLEET_MARK).touch()
-    results: dict[str, list[dict]] = {}
-    if not args.force:
-        for task in tasks:
-            if finished(task):
-                results[task.name] = rows(task, reused=True)
+    results = {t.name: kept for t in tasks if not args.force and (kept := _kept(t)) is not None}
     todo = [t for t in tasks if t.name not in results]
     start = time.perf_counter()
     done, where = _engine(args, todo) if todo else (iter(()), "nothing")
+    out.mkdir(parents=True, exist_ok=True)  # only now: a refused fleet or scheduler leaves nothing
+    (out / FLEET_MARK).touch()
     kept = f"; {len(results)} up to date from an earlier run (--force redoes them)" if results else ""
     print(f"diagnosing {len(todo)} of {len(tasks)} recordings on {where}{kept}", file=sys.stderr, flush=True)
-    for k, (task, task_rows) in enumerate(done, 1):
-        results[task.name] = task_rows
-        elapsed = time.perf_counter() - start
-        status = "ok" if task_rows[0]["status"] == "ok" else f"failed: {task_rows[0]['error']}"
-        left = f"; about {_duration(elapsed / k * (len(todo) - k))} left" if k < len(todo) else ""
-        print(f"recording {k} of {len(todo)}: {task.name} {status} ({_duration(elapsed)} elapsed{left})",
-              file=sys.stderr, flush=True)
-    all_rows = [r for t in tasks for r in results[t.name]]
+    _collect(done, len(todo), results)
     failed = [t.name for t in tasks if results[t.name][0]["status"] == "failed"]
     reused = len(tasks) - len(todo)
     summary = (f"{len(tasks)} recordings: {len(tasks) - len(failed)} ok"
@@ -151,7 +150,7 @@ def run_fleet(args: argparse.Namespace, options: DiagnoseOptions) -> int:
     run = {"command": "diagnose", "recordings": [t.recording for t in tasks], "engine": where,
            "arguments": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items() if k != "handler"},
            "seconds": round(time.perf_counter() - start, 3), "summary": summary}
-    write_fleet(out, FIELDS, all_rows, str(args.recording), run)
+    write_fleet(out, FIELDS, [r for t in tasks for r in results[t.name]], str(args.recording), run)
     print(f"fleet: {summary}")
     print(f"report: {out / 'index.html'}  (rows: {CSV_NAME}; each recording's report in its own folder)")
     return EXIT_FAILED if failed else 0
