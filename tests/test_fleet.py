@@ -139,9 +139,10 @@ def test_finished_needs_the_same_inputs_and_options(fleet, serial_run, tmp_path)
 
 
 def same_results(out: Path, reference: Path) -> None:
-    """The same diagnosis.json bytes, and the same rows but for the wall times."""
+    """The same diagnosis.json bytes, and the same rows but for wall times (and reuse: the reference was rerun)."""
     assert (out / "delayed" / "diagnosis.json").read_bytes() == (reference / "delayed" / "diagnosis.json").read_bytes()
-    rows = [{n: {k: v for k, v in r.items() if k != "seconds"} for n, r in read_rows(o).items()} for o in (out, reference)]
+    rows = [{n: {k: v for k, v in r.items() if k not in ("seconds", "reused")} for n, r in read_rows(o).items()}
+            for o in (out, reference)]
     assert rows[0] == rows[1]
 
 
