@@ -245,3 +245,23 @@ def test_fleet_options_and_folders_are_checked(fleet, tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.startswith("mjjoint: error: ") and error in err, err
     assert sorted(p.name for p in foreign.iterdir()) == ["thesis.tex"]
+
+
+def test_a_multi_joint_recording_gives_a_row_per_joint(fleet, serial_run, tmp_path):
+    """Joint 2 of a two-joint log (both joints the delayed gear) is reported as the single recording."""
+    with open(fleet["recs"] / "delayed.csv", newline="") as f:
+        table = list(csv.reader(f))
+    head = table[0][1:]
+    with open(tmp_path / "arm.csv", "w", newline="") as f:
+        csv.writer(f).writerows([["t", *(f"{c}{j}" for j in (1, 2) for c in head)]]
+                                + [[r[0], *r[1:], *r[1:]] for r in table[1:]])
+    (tmp_path / "robots.toml").write_text('[[recording]]\npath = "arm.csv"\njoint = [2]\n')
+    out = tmp_path / "out"
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        assert main(["diagnose", str(tmp_path / "robots.toml"), "--model", str(fleet["model"]), *FAST,
+                     "--out", str(out), "--workers", "1"]) == 0
+    (row,) = read_rows(out).values()
+    assert (row["recording"], row["joint"], row["status"], row["missing"]) == ("arm", "2", "ok", "input_delay")
+    assert row["report"] == "arm/joint2/index.html" and (out / row["report"]).is_file()
+    assert (out / "arm" / "joint2" / "diagnosis.json").read_bytes() == \
+        (serial_run[0] / "delayed" / "diagnosis.json").read_bytes()
