@@ -11,9 +11,11 @@ import time
 from pathlib import Path
 
 from ..diagnosis.loop import DiagnoseOptions
+from ..fleet.inputs import is_fleet
 from ..identify.effects import EFFECTS
 from .errors import CliError
 from .fit import Problem, add_problem_options, effect_names, prepare, run_info
+from .fleet import add_fleet_options, check_single, run_fleet
 
 DEFAULT_OUT = Path("out/diagnose")
 OPTIONS = DiagnoseOptions()
@@ -26,6 +28,9 @@ examples:
   mjjoint diagnose DATA_EMPS.mat --plant linear --columns t=t,u=vir,q=qm,theta=qm --scales u=35.15
   mjjoint diagnose arm.csv --model arm.toml --joint 1,2   each joint of a multi-joint recording
   mjjoint diagnose friction_log.csv --friction-map          friction torque vs motion (t,q,tau)
+  mjjoint diagnose logs/ --gear-ratio 160 --workers 4 --out fleet   every recording in a folder
+  mjjoint diagnose 'logs/*/run*.mat' --columns t=t,u=cur,q=qm,theta=ql --out fleet   a quoted glob
+  mjjoint diagnose robots.toml --scheduler tcp://head:8786 --out /shared/fleet   a manifest on a Dask cluster
 
 writes DIR/index.html (verdict, per-step evidence, figures), diagnosis.json (same inputs and
 seed give the same bytes), model.toml (the final model, for simulate --model), traces.rrd
@@ -33,6 +38,9 @@ seed give the same bytes), model.toml (the final model, for simulate --model), t
 PNGs and run.json (wall time); DIR appears only when complete. A multi-joint recording
 (u1,q1,theta1,tau1,u2,...) is diagnosed joint by joint into DIR/joint{{j}}/; DIR/diagnosis.json
 says which joints miss something ("mismatch_in") and DIR/index.html links the reports.
+A folder, glob or manifest of recordings (docs/fleet.md) is diagnosed recording by recording
+into DIR/<name>/; DIR/fleet.csv has a row per recording and joint, DIR/index.html links them,
+and a rerun keeps the reports whose inputs are unchanged (--force redoes them).
 
 candidate effects: {", ".join(EFFECTS)}
 """
@@ -60,6 +68,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="REC is a friction log (t, q, tau: friction torque against a prescribed motion): "
                         "fit the friction effects to tau along the measured motion, no inertia; "
                         "reports friction RMS [N m] before and after")
+    add_fleet_options(p)
     p.set_defaults(handler=run)
 
 
@@ -76,27 +85,37 @@ def options_from_args(args: argparse.Namespace) -> DiagnoseOptions:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..diagnosis.loop import diagnose
     from ..report.progress import StepLog
 
     options = options_from_args(args)
     if args.friction_map:
         from .friction_map import run as friction_map
         return friction_map(args, options.candidates)
+    if len(args.recording) == 1 and is_fleet(args.recording[0]):
+        return run_fleet(args, args.recording[0])  # options checked above; each task rebuilds its own
+    check_single(args)
     out, problem = prepare(args)
     if not isinstance(problem, Problem):
         from .per_joint import diagnose_joints
         return diagnose_joints(args, out, problem, options)
-    start = time.perf_counter()
-    diag = diagnose(problem.predictor, problem.base, options, progress=StepLog())
-    seconds = time.perf_counter() - start
-
-    from ..report.build import write_diagnosis
+    data, seconds = diagnose_recording(args, out, problem, options, StepLog())
     from ..report.summary import diagnosis_summary
+    print(diagnosis_summary(data, seconds))
+    print(f"report: {out.path / 'index.html'}  (data: diagnosis.json, traces.rrd)")
+    return 0
+
+
+def diagnose_recording(args: argparse.Namespace, out, problem: Problem, options: DiagnoseOptions,
+                       progress) -> tuple[dict, float]:
+    """Diagnose one single-joint problem into ``out``; returns the diagnosis.json data and wall time."""
+    from ..diagnosis.loop import diagnose
+    from ..report.build import write_diagnosis
+
+    start = time.perf_counter()
+    diag = diagnose(problem.predictor, problem.base, options, progress=progress)
+    seconds = time.perf_counter() - start
     run = {**run_info("diagnose", args, problem), "seconds": round(seconds, 3),
            "rollouts_full_length": round(diag.rollouts, 1)}
     with out.staged() as folder:
         data = write_diagnosis(folder, problem.predictor, diag, problem.source, run)
-    print(diagnosis_summary(data, seconds))
-    print(f"report: {out.path / 'index.html'}  (data: diagnosis.json, traces.rrd)")
-    return 0
+    return data, seconds

@@ -158,14 +158,26 @@ def _write_each(folder, command: str, args, jp: JointProblems, results: dict, wr
 
 def diagnose_joints(args: argparse.Namespace, out, jp: JointProblems, options) -> int:
     """``mjjoint diagnose`` on each selected joint; names the joints where something is missing."""
-    from ..diagnosis.loop import diagnose
-    from ..report.build import write_diagnosis
-    from ..report.joints import write_joints_index
-    from ..report.output import write_json
     from ..report.progress import StepLog
     from ..report.summary import diagnosis_summary
 
     log = StepLog()
+    summary, seconds = diagnose_each_joint(args, out, jp, options, log)
+    for j, data in summary["joints"].items():
+        print(f"== joint {j}")
+        print(diagnosis_summary(data, seconds[int(j)]))
+    print(f"verdict: {summary['verdict']}")
+    print(f"report: {out.path / 'index.html'}  (data: diagnosis.json; joint1/ ... with each joint's report)")
+    return 0
+
+
+def diagnose_each_joint(args: argparse.Namespace, out, jp: JointProblems, options, log) -> tuple[dict, dict[int, float]]:
+    """Each selected joint diagnosed into ``out``; the top-level diagnosis.json data and each joint's wall time."""
+    from ..diagnosis.loop import diagnose
+    from ..report.build import write_diagnosis
+    from ..report.joints import write_joints_index
+    from ..report.output import write_json
+
     results = {}
     for j, problem in jp.problems.items():
         start = time.perf_counter()
@@ -177,12 +189,7 @@ def diagnose_joints(args: argparse.Namespace, out, jp: JointProblems, options) -
         summary = joints_verdict(data)
         write_json(folder / "diagnosis.json", summary)
         write_joints_index(folder, "diagnose", jp.source, data, summary, _top_run("diagnose", args, jp, results))
-    for j, (diag, seconds) in results.items():
-        print(f"== joint {j}")
-        print(diagnosis_summary(data[str(j)], seconds))
-    print(f"verdict: {summary['verdict']}")
-    print(f"report: {out.path / 'index.html'}  (data: diagnosis.json; joint1/ ... with each joint's report)")
-    return 0
+    return summary, {j: s for j, (_, s) in results.items()}
 
 
 def joints_verdict(data: dict[str, dict]) -> dict:

@@ -51,6 +51,16 @@ def check_destination(path: str | Path, option: str) -> None:
         raise PermissionError(13, "Permission denied", str(base))
 
 
+def check_folder(path: Path, marker: str = MARKER, what: str = "an mjjoint output") -> None:
+    """``--out`` may become or replace ``path``: absent, empty, or holding ``marker`` (ours)."""
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{path}: exists and is not a folder; choose another --out")
+    if path.is_dir() and any(path.iterdir()) and not (path / marker).is_file():
+        raise ValueError(f"{path}: folder exists and is not {what} (no {marker}); "
+                         "choose another --out or empty it")
+    check_destination(path, "--out")
+
+
 def partial_name(path: Path) -> Path:
     """Where ``path`` is written before it is complete: beside it, same suffix (the writers go by it)."""
     return path.with_name(f"{path.stem}.partial-{os.getpid()}{path.suffix}")
@@ -115,13 +125,7 @@ class OutputDir:
 
     def check(self) -> None:
         """Fail now, before any compute is spent, if the result could not be put in place."""
-        p = self.path
-        if p.exists() and not p.is_dir():
-            raise ValueError(f"{p}: exists and is not a folder; choose another --out")
-        if p.is_dir() and any(p.iterdir()) and not (p / MARKER).is_file():
-            raise ValueError(f"{p}: folder exists and is not an mjjoint output (no {MARKER}); "
-                             "choose another --out or empty it")
-        check_destination(p, "--out")
+        check_folder(self.path)
 
     @contextmanager
     def staged(self) -> Iterator[Path]:
