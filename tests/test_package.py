@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -41,7 +42,10 @@ def test_wheel_installed_elsewhere_simulates(tmp_path):
     The wheel's own files (not this checkout) must be what runs: its console script, its
     package data and its metadata (``--version``).
     """
-    root = Path(__file__).resolve().parents[1]
+    # A copy of the source: building in place would leave build/ in the checkout.
+    root = tmp_path / "src"
+    shutil.copytree(Path(__file__).resolve().parents[1], root, ignore=shutil.ignore_patterns(
+        ".git", ".venv", "build", "dist", "out", "*.egg-info", "__pycache__", ".hypothesis", ".pytest_cache"))
     wheels, site, work = tmp_path / "wheels", tmp_path / "site", tmp_path / "work"
     work.mkdir()
     pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]

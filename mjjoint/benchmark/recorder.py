@@ -20,7 +20,7 @@ from ..assets import ArmSpec, build_arm, load_model
 from ..coupling.kernels import joint_catch_up, transmitted
 from ..coupling.layout import NSTATE
 from ..joint import JointParams
-from ..params import check
+from ..params import check, substeps
 from ..sim import joint_indices
 
 RESOLVER_BITS = 15      # motor resolver (Sec. 4)
@@ -98,7 +98,7 @@ def record(arm: ArmSpec, joint: JointParams, program: LabProgram = LabProgram(),
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
     ji = joint_indices(model)[0]
-    sub = int(round(1.0 / (rate * model.opt.timestep)))
+    sub = substeps(rate, model.opt.timestep, "rate")
     n = int(round(program.duration * rate))
     t = np.arange(n) / rate
     q_ref = program.reference(t) * ji.gear_ratio

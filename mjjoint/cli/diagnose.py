@@ -13,7 +13,7 @@ from pathlib import Path
 from ..diagnosis.loop import DiagnoseOptions
 from ..identify.effects import EFFECTS
 from .errors import CliError
-from .fit import Problem, add_problem_options, effect_names, prepare, run_info
+from .options import Problem, add_problem_options, effect_names, prepare, run_info
 
 DEFAULT_OUT = Path("out/diagnose")
 OPTIONS = DiagnoseOptions()

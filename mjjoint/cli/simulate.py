@@ -10,7 +10,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..assets.multi import read_model_file, write_traces_csv
+from ..assets.serial_file import read_model_file
 from ..excitation import EXCITATIONS, FromFile, excitation_fields
 from ..coupling.layout import NSTATE
 from ..modelfile import ModelFile, from_section
@@ -19,6 +19,7 @@ from ..report.output import DESTINATION_RULE, check_destination, staged_files
 from ..sim import FULL, Simulator, Trace
 from .chunked import simulate_chunked
 from .errors import CliError
+from ..trace_recording import write_traces_csv
 from .memory import HEADROOM, check_fits
 
 DEFAULT_OUT = Path("out/simulate")
