@@ -42,8 +42,8 @@ from .structure import Structure
 SIGNALS = ("q", "delta", "tau")
 # Window-start velocities: a 7 ms cubic Savitzky-Golay derivative. Longer or lower-order
 # filters bias the velocity of the ~40 Hz transmission mode, which then rings through the
-# lightly damped window; 7 ms / order 3 gave the true model the lowest prediction cost on
-# quantised closed-loop recordings (scripts/concealed_benchmark.py cases).
+# lightly damped window; 7 ms / order 3 gives the true model the lowest prediction cost on
+# quantised closed-loop recordings of the shipped arm.
 VELOCITY_WINDOW = 0.007
 VELOCITY_ORDER = 3
 # Rollout output buffer per predict() call [bytes]. MuJoCo writes the full state of every
