@@ -71,8 +71,22 @@ class Inputs:
 
 def load_problem(recording: Recording | MultiRecording | str | Path, inputs: Inputs = Inputs(),
                  names: Mapping[str, str] | None = None) -> Problem | JointProblems:
-    """The problem of ``recording`` under ``inputs``; a one-line ``ValueError`` naming the input
-    (as ``names`` spells it) for anything that does not fit."""
+    """The problem of ``recording`` under ``inputs``.
+
+    Args:
+        recording: a ``Recording`` (arrays of shape (n,)), a ``MultiRecording``, or the path of
+            a recording file (read with ``inputs.columns``, ``scales``, ``allow_gaps``).
+        inputs: how to read it and where to start (``Inputs``).
+        names: how the caller names each input in messages (``{"gear_ratio": "--gear-ratio"}``);
+            unnamed inputs keep their Python names.
+
+    Returns:
+        A ``Problem``, or ``JointProblems`` for a multi-joint recording (or inputs only such a
+        recording takes: ``joints``, a tuple per joint, a ``[[joint]]`` model file).
+
+    Raises:
+        ValueError: in one line naming the input, for anything that does not fit.
+    """
     say = _Names(names or {})
     for key in ("gear_ratio", "k_m"):
         value = getattr(inputs, key)

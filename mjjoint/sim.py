@@ -212,6 +212,24 @@ def check_diverged(states: np.ndarray, t0: float) -> None:
                          "joint unstable at this timestep (reduce the input or the timestep)")
 
 
-def simulate(u: np.ndarray, model: mujoco.MjModel | None = None, sample_rate: float = 1000.0, **build):
-    """One-call simulation: ``simulate(u)`` -> Trace of the default arm driven by torques ``u``."""
+def simulate(u: np.ndarray, model: mujoco.MjModel | None = None, sample_rate: float = 1000.0,
+             **build) -> Trace | list[Trace]:
+    """One-call simulation: ``simulate(u)`` -> Trace of the default arm driven by torques ``u``.
+
+    Args:
+        u: motor torques [N m], shape (n,) for one joint or (n, njoint), each held over its
+            sample period; row k acts over [k, k+1) / sample_rate.
+        model: a compiled model with ``mjjoint.joint`` instances; default: the shipped arm,
+            built with ``build`` (``ArmSpec`` and ``JointParams`` as ``arm=``, ``joint=``).
+        sample_rate: samples per second [Hz]; 1/timestep must be a whole multiple of it.
+        **build: passed to ``load_model`` when ``model`` is None.
+
+    Returns:
+        A ``Trace`` (arrays of shape (n,): t, u, q, theta, tau, friction, ...; states (n, 13)),
+        or one per joint for a multi-joint model.
+
+    Raises:
+        ValueError: a bad parameter or rate, ``u`` of the wrong shape or not finite, or a run
+            that diverged.
+    """
     return Simulator(model, sample_rate=sample_rate, **build).run(u)
