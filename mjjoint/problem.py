@@ -93,6 +93,8 @@ def load_problem(recording: Recording | MultiRecording | str | Path, inputs: Inp
         for v in value if isinstance(value, tuple) else (value,):
             if v is not None and not v > 0:
                 raise ValueError(f"{say(key)} {v:g} must be positive")
+    if inputs.joints is not None and (not inputs.joints or min(inputs.joints) < 1):
+        raise ValueError(f"{say('joints')}: joints are numbered from 1, got {inputs.joints!r}")
     if inputs.plant not in PLANTS:
         raise ValueError(f"{say('plant')} {inputs.plant!r} is not one of {', '.join(PLANTS)}")
     if inputs.plant != "arm":

@@ -101,6 +101,7 @@ def test_what_a_model_file_cannot_hold_is_a_warning(files, tmp_path):
     ({"gear_ratio": GEAR, "base": ["no_such_effect"]}, ValueError, "base: "),
     ({"gear_ratio": GEAR, "plant": "crane"}, ValueError, "plant 'crane' is not one of"),
     ({"gear_ratio": GEAR, "max_iter": 0}, ValueError, "max_iter=0"),
+    ({"gear_ratio": GEAR, "joints": (0,)}, ValueError, r"joints: joints are numbered from 1, got \(0,\)"),
     ({"gear_ratio": GEAR, "window": 0.1}, TypeError, "window"),
 ])
 def test_bad_inputs_fail_naming_the_python_input(files, inputs, error, message):

@@ -90,9 +90,9 @@ def effect_names(text: str, option: str, known: tuple[str, ...] = tuple(EFFECTS)
     return names
 
 
-def effect_list(text: str, option: str = "--base", known: tuple[str, ...] = tuple(EFFECTS)) -> tuple[str, ...]:
+def effect_list(text: str, option: str = "--base") -> tuple[str, ...]:
     """The effects of a starting structure ('minimal' alone: none)."""
-    names = effect_names(text, option, (MINIMAL, *known))
+    names = effect_names(text, option, (MINIMAL, *EFFECTS))
     if names == [MINIMAL]:
         return ()
     if MINIMAL in names:
