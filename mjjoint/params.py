@@ -51,3 +51,16 @@ def from_mapping(cls: type, data: dict[str, Any], where: str):
     if unknown:
         raise ValueError(f"unknown key {where}.{unknown[0]} (allowed: {', '.join(sorted(known))})")
     return cls(**data)
+
+
+def substeps(rate: float, timestep: float, name: str = "sample_rate") -> int:
+    """Model steps per sample: ``rate`` must be the model rate 1/``timestep`` divided by an integer.
+
+    The tolerance admits rates computed from recorded timestamps (1/dt carries rounding), not a
+    rate whose samples would drift against the steps.
+    """
+    sub = round(1.0 / (rate * timestep))
+    if sub < 1 or abs(sub * timestep * rate - 1.0) > 1e-6:
+        raise ValueError(f"{name}={rate:g} Hz must be the model rate 1/timestep={1 / timestep:g} Hz "
+                         "divided by an integer")
+    return int(sub)

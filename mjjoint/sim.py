@@ -18,7 +18,7 @@ from .assets import load_model
 from .coupling.kernels import joint_traces, settled_states
 from .coupling.layout import NSTATE, STATE_NAMES
 from .coupling.plugin import PLUGIN_NAME, block_for
-from .params import check
+from .params import check, substeps
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
@@ -44,6 +44,22 @@ class JointIndex:
         h, invw = model.opt.timestep, model.dof_invweight0
         return (float(h), float(h * invw[self.motor_dof]) if self.motor_dof >= 0 else 0.0,
                 float(h * invw[self.link_dof]) if self.link_dof >= 0 else 0.0)
+
+    def plugin_states(self, full: np.ndarray) -> np.ndarray:
+        """This instance's internal states, (..., NSTATE), in full-physics state rows (..., nstate): a view."""
+        return full[..., self.state_start:self.state_start + NSTATE]
+
+    def settled(self, model: mujoco.MjModel, full: np.ndarray):
+        """Internal states at each row's own instant, and (q, qd, theta, thetad), each (n,), of
+        full-physics state rows ``full`` (n, nstate); a side fixed to the world reads 0."""
+        nq, zero = model.nq, np.zeros(len(full))
+        q = full[:, 1 + self.motor_qpos] if self.motor_qpos >= 0 else zero
+        qd = full[:, 1 + nq + self.motor_dof] if self.motor_dof >= 0 else zero
+        th = full[:, 1 + self.link_qpos] if self.link_qpos >= 0 else zero
+        thd = full[:, 1 + nq + self.link_dof] if self.link_dof >= 0 else zero
+        st = settled_states(self.block, np.ascontiguousarray(self.plugin_states(full)), full[:, 0],
+                            q, qd, th, thd, *self.steps(model))
+        return st, (q, qd, th, thd)
 
 
 def joint_indices(model: mujoco.MjModel) -> list[JointIndex]:
@@ -115,12 +131,7 @@ class Simulator:
         self.data = mujoco.MjData(self.model)
         self.joints = joint_indices(self.model)
         self.sample_rate = check("sample_rate", sample_rate, 0.0, lo_open=True)
-        dt = self.model.opt.timestep
-        sub = round(1.0 / (self.sample_rate * dt))
-        if sub < 1 or abs(sub * dt * self.sample_rate - 1.0) > 1e-9:
-            raise ValueError(f"sample_rate={sample_rate:g} Hz must be the model rate 1/timestep={1/dt:g} Hz "
-                             "divided by an integer")
-        self.substeps = sub
+        self.substeps = substeps(self.sample_rate, self.model.opt.timestep)
 
     def initial_state(self, key: str | int | None = "home") -> np.ndarray:
         """Full-physics state after ``mj_resetData`` (and the keyframe, if the model has it)."""
@@ -180,20 +191,11 @@ class Simulator:
 
     def traces(self, states: np.ndarray, u: np.ndarray) -> list[Trace]:
         u2 = self.applied(u)
-        nq = self.model.nq
-        qpos = states[:, 1:1 + nq]
-        qvel = states[:, 1 + nq:1 + nq + self.model.nv]
+        qpos = states[:, 1:1 + self.model.nq]
         out = []
         for j, ji in enumerate(self.joints):
-            zero = np.zeros(len(states))
-            q = qpos[:, ji.motor_qpos] if ji.motor_qpos >= 0 else zero
-            theta = qpos[:, ji.link_qpos] if ji.link_qpos >= 0 else zero
-            qd = qvel[:, ji.motor_dof] if ji.motor_dof >= 0 else zero
-            thd = qvel[:, ji.link_dof] if ji.link_dof >= 0 else zero
-            steps = ji.steps(self.model)
-            st = settled_states(ji.block, np.ascontiguousarray(states[:, ji.state_start:ji.state_start + NSTATE]),
-                                states[:, 0], q, qd, theta, thd, *steps)
-            tau, fric, load = joint_traces(ji.block, st, q, qd, theta, thd, *steps)
+            st, (q, qd, theta, thd) = ji.settled(self.model, states)
+            tau, fric, load = joint_traces(ji.block, st, q, qd, theta, thd, *ji.steps(self.model))
             out.append(Trace(t=states[:, 0].copy(), u=u2[:, j].copy(), q=q.copy(), theta=theta.copy(),
                              qd=qd.copy(), thetad=thd.copy(), tau=tau, friction=fric, load_friction=load,
                              states=st, gear_ratio=ji.gear_ratio, qpos=qpos.copy()))
@@ -210,6 +212,24 @@ def check_diverged(states: np.ndarray, t0: float) -> None:
                          "joint unstable at this timestep (reduce the input or the timestep)")
 
 
-def simulate(u: np.ndarray, model: mujoco.MjModel | None = None, sample_rate: float = 1000.0, **build):
-    """One-call simulation: ``simulate(u)`` -> Trace of the default arm driven by torques ``u``."""
+def simulate(u: np.ndarray, model: mujoco.MjModel | None = None, sample_rate: float = 1000.0,
+             **build) -> Trace | list[Trace]:
+    """One-call simulation: ``simulate(u)`` -> Trace of the default arm driven by torques ``u``.
+
+    Args:
+        u: motor torques [N m], shape (n,) for one joint or (n, njoint), each held over its
+            sample period; row k acts over [k, k+1) / sample_rate.
+        model: a compiled model with ``mjjoint.joint`` instances; default: the shipped arm,
+            built with ``build`` (``ArmSpec`` and ``JointParams`` as ``arm=``, ``joint=``).
+        sample_rate: samples per second [Hz]; 1/timestep must be a whole multiple of it.
+        **build: passed to ``load_model`` when ``model`` is None.
+
+    Returns:
+        A ``Trace`` (arrays of shape (n,): t, u, q, theta, tau, friction, ...; states (n, 13)),
+        or one per joint for a multi-joint model.
+
+    Raises:
+        ValueError: a bad parameter or rate, ``u`` of the wrong shape or not finite, or a run
+            that diverged.
+    """
     return Simulator(model, sample_rate=sample_rate, **build).run(u)

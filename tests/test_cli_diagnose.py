@@ -22,7 +22,7 @@ import mjjoint.diagnosis.loop as loop
 import mjjoint.report.build as build
 from mjjoint.assets import ArmSpec
 from mjjoint.cli import main
-from mjjoint.cli.fit import structure_from_model
+from mjjoint.identify.from_model import structure_from_model
 from mjjoint.excitation import Multisine
 from mjjoint.identify.effects import EFFECTS
 from mjjoint.identify.structure import Structure

@@ -48,6 +48,6 @@ def test_full_case_set(effect, tmp_path):
 def test_a_stalled_refit_leaves_no_room_for_a_stand_in(tmp_path):
     """Seed 3's backlash case: the least-squares refit with the play stalls at 10x the truth's
     held-out cost, and without the robust refit (DiagnoseOptions.robust_refit) the next round
-    named nonlinear_stiffness for the rest (docs/benchmark.md, twelfth run)."""
+    named nonlinear_stiffness for the rest (CHANGELOG.md, "Benchmark history", twelfth run)."""
     score = run_case("backlash", seed=3, folder=tmp_path, duration=20.0)
     assert score.passed and not score.false_additions, score

@@ -67,12 +67,12 @@ def test_the_coarse_phase_ends_where_a_fit_on_all_windows_ends(monkeypatch):
 
 
 def _linear_objective(monkeypatch, a, b):
-    """An _Objective whose residual is the linear a x - b (no rollouts)."""
+    """An Objective whose residual is the linear a x - b (no rollouts)."""
     monkeypatch.setattr(fitmod, "residual_matrix",
                         lambda *args, **kw: (lambda x: a @ (x if x.ndim == 2 else x[:, None]) - b[:, None]))
     n = a.shape[1]
     predictor = SimpleNamespace(predict=None)  # the residual above never predicts
-    return fitmod._Objective(predictor, None, None, None, np.full(n, -10.0), np.full(n, 10.0), fitmod.STEP_SE)
+    return fitmod.Objective(predictor, None, None, None, np.full(n, -10.0), np.full(n, 10.0), fitmod.STEP_SE)
 
 
 @pytest.mark.parametrize("se", [0.3, 3.0])
@@ -93,7 +93,7 @@ def test_a_failed_trial_step_ends_the_fit_only_near_the_optimum(monkeypatch, se)
     assert obj.steps_se[-1] == pytest.approx(se, rel=0.02)  # s^2 is taken at x: larger by se^2 s^2 / (m - n)
     worse = (x + (x - opt))[:, None]
     if se < fitmod.FAIL_SE:
-        with pytest.raises(fitmod._Converged):
+        with pytest.raises(fitmod.Converged):
             obj.residual(worse)
     else:
         assert float(np.sum(obj.residual(worse) ** 2)) > float(r[:, 0] @ r[:, 0])

@@ -22,12 +22,13 @@ import pytest
 import mjjoint.fleet.engines as engines
 from mjjoint.assets import ArmSpec
 from mjjoint.cli import main
-from mjjoint.cli.fit import load_problem
+from mjjoint.cli.options import NAMES, inputs_from_args
 from mjjoint.excitation import Multisine
 from mjjoint.fleet import resolve
 from mjjoint.fleet.task import FIELDS, Task, failed_row, finished, input_hash
 from mjjoint.identify.structure import Structure
 from mjjoint.modelfile import dump_model_file
+from mjjoint.problem import load_problem
 from mjjoint.sim import Simulator
 
 GEAR = 160.0
@@ -202,7 +203,8 @@ def test_a_manifest_row_replaces_the_command_line_options(fleet, tmp_path, monke
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         assert main(["diagnose", str(manifest), "--base", "linear_stiffness", "--gear-ratio", str(GEAR), *FAST,
                      "--out", str(tmp_path / "out"), "--workers", "1"]) == 1
-    problems = {t.name: load_problem(argparse.Namespace(**t.arguments, out=t.out)) for t in seen}
+    problems = {t.name: load_problem(t.arguments["recording"], inputs_from_args(argparse.Namespace(**t.arguments)), NAMES)
+                for t in seen}
     assert problems["renamed"].base.gear_ratio == GEAR and problems["delayed"].base.gear_ratio == 100.0
     assert problems["renamed"].predictor.m.t[-1] == pytest.approx(2.0, abs=2e-3)
 

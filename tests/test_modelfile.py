@@ -1,13 +1,14 @@
 """Model files: round trips, the shipped examples, and one-line errors naming the key."""
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 
 import pytest
 
 from mjjoint.assets import ASSETS_DIR, ArmSpec
 from mjjoint.joint import JointParams
-from mjjoint.modelfile import ModelFile, dump_model_file, load_model_file
+from mjjoint.modelfile import ModelFile, dump_model_file, load_model_file, model_mapping
 from mjjoint.physics.boucwen import BoucWen
 from mjjoint.physics.load import LoadFriction
 from mjjoint.physics.ripple import TorqueRipple
@@ -44,7 +45,13 @@ def test_round_trip(tmp_path, suffix, arm, joint, rate):
 
 
 def test_default_example_states_the_defaults():
-    assert load_model_file(EXAMPLES / "default.toml") == ModelFile()
+    """Every key of every section, each at its default: a key left out (which would load as its
+    default all the same) fails the key-set comparison."""
+    path = EXAMPLES / "default.toml"
+    written = tomllib.loads(path.read_text(encoding="utf-8"))
+    expected = model_mapping()
+    assert {s: set(keys) for s, keys in written.items()} == {s: set(keys) for s, keys in expected.items()}
+    assert load_model_file(path) == ModelFile()
 
 
 def test_stiff_linear_example_is_linear_and_stiffer():

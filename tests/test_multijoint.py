@@ -14,9 +14,12 @@ from scipy import signal
 
 from mjjoint.assets import ArmSpec, build_arm, load_model
 from mjjoint.assets.builder import ASSETS_DIR
-from mjjoint.assets.multi import (SHIPPED, JointSpec, World, add_elastic_joint, add_home_key, build_serial_arm,
-                                  check_arm_stability, load_serial_arm_file, new_spec, planar_arm2,
-                                  read_model_file, recording, shipped_xml, stable_timesteps, track)
+from mjjoint.assets.serial import (JointSpec, World, add_elastic_joint, add_home_key, build_serial_arm,
+                                   check_arm_stability, new_spec, stable_timesteps)
+from mjjoint.assets.serial_file import load_serial_arm_file, read_model_file
+from mjjoint.assets.shipped_arms import SHIPPED, planar_arm2, shipped_xml
+from mjjoint.trace_recording import recording
+from mjjoint.tracking import track
 from mjjoint.cli import main
 from mjjoint.coupling.layout import pack
 from mjjoint.joint import JointParams
@@ -236,7 +239,7 @@ def test_shipped_arms_survive_a_full_range_current_step_on_every_joint(name):
 
 @pytest.mark.parametrize("name", list(SHIPPED))
 def test_shipped_xml_is_what_the_builder_writes(name):
-    """The assets are generated (python -m mjjoint.assets.multi): they must not drift from the code."""
+    """The assets are generated (python -m mjjoint.assets.shipped_arms): they must not drift from the code."""
     assert (ASSETS_DIR / name).read_text() == shipped_xml(name)
 
 

@@ -21,17 +21,13 @@ import pytest
 from test_multijoint import lock
 
 from mjjoint.assets import load_model
-from mjjoint.assets.multi import (
-    SerialArmFile,
-    build_serial_arm,
-    read_model_file,
-    recording,
-    track,
-    write_traces_csv,
-)
+from mjjoint.assets.joint_view import single_joint_models
+from mjjoint.assets.serial import build_serial_arm
+from mjjoint.assets.serial_file import SerialArmFile, read_model_file
 from mjjoint.cli import main
-from mjjoint.cli.fit import structure_from_model
-from mjjoint.cli.joint_view import single_joint_models
+from mjjoint.identify.from_model import structure_from_model
+from mjjoint.trace_recording import recording, write_traces_csv
+from mjjoint.tracking import track
 from mjjoint.identify.fit import evaluate
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.recordings import read_recording

@@ -1,9 +1,15 @@
 """The installed package carries its MJCF: a shipped model is found by its name from any folder."""
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
 from pathlib import Path
 
 import mujoco
+import pytest
 
 import mjjoint
 from mjjoint.cli import main
@@ -27,3 +33,38 @@ def test_a_shipped_model_by_name_from_another_folder(tmp_path, monkeypatch):
 def test_version(capsys):
     assert main(["--version"]) == 0
     assert capsys.readouterr().out.strip() == f"mjjoint {mjjoint.__version__}"
+
+
+@pytest.mark.slow
+def test_wheel_installed_elsewhere_simulates(tmp_path):
+    """The built wheel, installed alone into a folder, runs ``mjjoint simulate`` from another one.
+
+    The wheel's own files (not this checkout) must be what runs: its console script, its
+    package data and its metadata (``--version``).
+    """
+    # A copy of the source: building in place would leave build/ in the checkout.
+    root = tmp_path / "src"
+    shutil.copytree(Path(__file__).resolve().parents[1], root, ignore=shutil.ignore_patterns(
+        ".git", ".venv", "build", "dist", "out", "*.egg-info", "__pycache__", ".hypothesis", ".pytest_cache"))
+    wheels, site, work = tmp_path / "wheels", tmp_path / "site", tmp_path / "work"
+    work.mkdir()
+    pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
+    subprocess.run([*pip, "wheel", "--no-deps", "-w", str(wheels), str(root)], check=True)
+    (wheel,) = wheels.glob("mjjoint-*.whl")
+    with zipfile.ZipFile(wheel) as z:
+        names = z.namelist()
+    assert "mjjoint/assets/mjcf/arm3.xml" in names
+    assert any(".dist-info/" in n and n.endswith("/LICENSE") for n in names)
+    subprocess.run([*pip, "install", "--no-deps", "--target", str(site), str(wheel)], check=True)
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    script = site / "bin" / "mjjoint"
+    where = subprocess.run([sys.executable, "-c", "import mjjoint; print(mjjoint.__file__)"],
+                           cwd=work, env=env, capture_output=True, text=True, check=True)
+    assert Path(where.stdout.strip()).is_relative_to(site)
+    done = subprocess.run([sys.executable, str(script), "simulate", "--model", "arm3.xml", "--duration", "0.2", "--csv", "x.csv"],
+                          cwd=work, env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert (work / "x.csv").read_text().splitlines()[0].startswith("t,u1,q1,theta1,tau1")
+    version = subprocess.run([sys.executable, str(script), "--version"], cwd=work, env=env,
+                             capture_output=True, text=True, check=True)
+    assert version.stdout.strip() == f"mjjoint {mjjoint.__version__}"

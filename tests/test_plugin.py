@@ -39,9 +39,9 @@ def model():
 def test_discovered_offsets_match_the_bindings(model):
     data = mujoco.MjData(model)
     off = abi.offsets()
-    assert abi._read_u64(data._address + off.d_plugin_state) == data.plugin_state.ctypes.data
-    assert abi._read_u64(data._address + off.d_plugin_data) == data.plugin_data.ctypes.data
-    assert abi._read_u64(model._address + off.m_plugin_stateadr) == model.plugin_stateadr.ctypes.data
+    assert abi.read_u64(data._address + off.d_plugin_state) == data.plugin_state.ctypes.data
+    assert abi.read_u64(data._address + off.d_plugin_data) == data.plugin_data.ctypes.data
+    assert abi.read_u64(model._address + off.m_plugin_stateadr) == model.plugin_stateadr.ctypes.data
     assert ctypes.c_double.from_address(model._address + off.m_timestep).value == model.opt.timestep
     data.time = 12.375
     assert ctypes.c_double.from_address(data._address + off.d_time).value == data.time

@@ -233,14 +233,14 @@ def test_figures_name_the_plants_own_units(joint_type, position, speed, force):
 
     from mjjoint.assets.drive import DriveSpec
     from mjjoint.identify.structure import Structure
-    from mjjoint.report.compare import _plant_units
-    from mjjoint.report.evidence import _condition
+    from mjjoint.report.compare import plant_units
+    from mjjoint.report.evidence import condition_axis
     from mjjoint.report.plots import axis_label
 
     plant = dataclasses.replace(DriveSpec(), joint_type=joint_type)
-    units = _plant_units(Structure.create(("coulomb_friction",), plant, 1.0).nominal)
+    units = plant_units(Structure.create(("coulomb_friction",), plant, 1.0).nominal)
     cmp = comparison()
     cmp.plant_units = units
     assert axis_label(cmp, "q").endswith(f"[{position}]") and axis_label(cmp, "tau").endswith(f"[{force}]")
-    assert _condition("coulomb_friction", cmp)[1] == f"motor velocity q' [{speed}]"
+    assert condition_axis("coulomb_friction", cmp)[1] == f"motor velocity q' [{speed}]"
     assert comparison().display("q") == ("rad", 1.0)  # a geared joint keeps the catalogue's

@@ -14,7 +14,7 @@ from mjjoint.assets.drive import DriveSpec
 from mjjoint.identify import windows
 from mjjoint.identify.fit import window_costs
 from mjjoint.identify.structure import Structure
-from mjjoint.identify.windows import Measured, Predictor, WindowDesign, _window_starts
+from mjjoint.identify.windows import Measured, Predictor, WindowDesign, window_starts
 from mjjoint.recordings import Recording
 
 from test_drive import FRICTION, TRUTH, drive_model
@@ -29,7 +29,7 @@ def _chirp(n: int) -> np.ndarray:
 
 
 def test_a_smooth_input_leaves_the_grid_alone():
-    starts = _window_starts(10000, 250, _chirp(10000), HALF, WARMUP)
+    starts = window_starts(10000, 250, _chirp(10000), HALF, WARMUP)
     assert np.array_equal(starts, np.arange(0, 9750, 250))
 
 
@@ -40,7 +40,7 @@ def test_starts_stay_off_steps_and_the_windows_still_tile_the_recording(seed):
     steps = sorted(rng.choice(np.arange(100, 9900), 12, replace=False).tolist() + [1000, 2000])
     for k, s in enumerate(steps):
         u[s:] += (-1) ** k * rng.uniform(0.5, 1.5)
-    starts = _window_starts(10000, 250, u, HALF, WARMUP)
+    starts = window_starts(10000, 250, u, HALF, WARMUP)
     gaps = np.diff(starts)
     # Each window starts where the last ended or at most a warmup earlier: no gap, no shared
     # cost sample.
@@ -105,7 +105,7 @@ def test_stacked_logs_are_tiled_afresh_from_each_join():
     u[3000:] += 1.0  # a step at a join is no reason to move back across it
     u[4000:] -= 1.0  # ... one inside a log moves its window, not past the join before it
     joins = (3000, 6000)
-    starts = _window_starts(10000, 250, u, HALF, WARMUP, joins)
+    starts = window_starts(10000, 250, u, HALF, WARMUP, joins)
     for j in joins:
         assert j in starts
         assert not np.any((starts < j) & (starts + 250 > j))  # no window crosses a join

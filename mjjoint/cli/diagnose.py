@@ -14,8 +14,8 @@ from ..diagnosis.loop import DiagnoseOptions
 from ..fleet.inputs import is_fleet
 from ..identify.effects import EFFECTS
 from .errors import CliError
-from .fit import Problem, add_problem_options, effect_names, prepare, run_info
 from .fleet import add_fleet_options, check_single, run_fleet
+from .options import Problem, add_problem_options, effect_names, prepare, run_info
 
 DEFAULT_OUT = Path("out/diagnose")
 OPTIONS = DiagnoseOptions()

@@ -20,7 +20,7 @@ from ..fleet.inputs import Entry, resolve
 from ..fleet.task import FIELDS, Task, finished, input_hash, rows
 from ..report.output import check_folder
 from .errors import CliError
-from .fit import PLANTS, joint_numbers, numbers
+from .options import PLANTS, joint_numbers, numbers
 
 EXIT_FAILED = 1
 FLEET_MARK = ".mjjoint-fleet"  # an (empty) file naming DIR a fleet folder, so a rerun may write into it

@@ -1,11 +1,11 @@
 """``fit`` and ``diagnose`` on a multi-joint recording: each joint on its own, one report per joint.
 
 Joint j's columns (u_j, q_j, theta_j, tau_j) make a single-joint recording, and the ordinary
-single-joint fit or diagnosis runs on it from that joint's starting model: ``--base`` with the
-joint's ``--gear-ratio`` (one value for all joints or one per joint), a single-joint model
-file used for every joint, or a ``[[joint]]`` model file whose joint j is seen as the single
-arm with the rest of the arm frozen as a rigid load (``joint_view``). The other joints' motion
-is then a load the model lacks: docs/multijoint.md says when that matters.
+single-joint fit or diagnosis runs on it from that joint's starting model (``problem``:
+``--base`` with the joint's ``--gear-ratio``, one value for all joints or one per joint; a
+single-joint model file used for every joint; or a ``[[joint]]`` model file whose joint j is
+seen as the single arm with the rest of the arm frozen as a rigid load, ``assets.joint_view``).
+The other joints' motion is then a load the model lacks: docs/multijoint.md says when that matters.
 
 Output: DIR/joint{j}/ holds the usual files of that joint; DIR/diagnosis.json (or fit.json)
 gathers them under "joints", and DIR/index.html links them.
@@ -14,104 +14,13 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import dataclass, field
 
-from ..assets import ArmSpec
-from ..assets.multi import SerialArmFile
-from ..identify.effects import SEED_EFFECTS
-from ..identify.structure import Structure
-from ..identify.windows import Measured, Predictor
-from ..recordings import MultiRecording, Recording
-from .errors import CliError
-from .fit import Problem, effect_list, read_input, run_info, structure_from_model, window_design
-from .joint_view import single_joint_models
+from ..problem import JointProblems
+from .options import run_info
 
 COUPLING = ("each joint was diagnosed alone, so the other joints' motion (their inertia, Coriolis and gravity "
             "forces) is a load its model lacks: it can hide a missing effect or pass for one (docs/multijoint.md)")
 
-
-@dataclass
-class JointProblems:
-    """What fit and diagnose work on for a multi-joint recording: one Problem per selected joint."""
-
-    source: str
-    problems: dict[int, Problem]
-    notes: list[str] = field(default_factory=list)
-
-
-def requested(args: argparse.Namespace, model) -> bool:
-    """Whether the options alone say the recording has several joints."""
-    return (args.joint is not None or isinstance(model, SerialArmFile)
-            or isinstance(args.gear_ratio, tuple) or isinstance(args.k_m, tuple))
-
-
-def one_per_joint(option: str, value, n: int) -> list:
-    """One value per joint from an option given once for all joints or as a list of n."""
-    if not isinstance(value, tuple):
-        return [value] * n
-    if len(value) != n:
-        raise CliError(f"{option} gives {len(value)} values; the recording holds {n} joints "
-                       "(give one value for all, or one per joint)")
-    return list(value)
-
-
-def load_problems(args: argparse.Namespace, model, rec: MultiRecording | Recording | None = None) -> JointProblems:
-    """The selected joints' single-joint problems (one-line errors naming the joint)."""
-    if len(args.recording) > 1:
-        raise CliError("several recordings are stacked only when each holds one joint; "
-                       "--joint, lists of values and [[joint]] model files take one multi-joint recording")
-    path = args.recording[0]
-    if rec is None:
-        rec = read_input(args, path, None, None if isinstance(args.k_m, tuple) else args.k_m)
-        if isinstance(rec, MultiRecording) and isinstance(args.k_m, tuple):
-            ks = one_per_joint("--k-m", args.k_m, rec.n_joints)
-            rec = MultiRecording(tuple(r.with_columns(u=r.u * k) for r, k in zip(rec.joints, ks)), rec.meta)
-    if not isinstance(rec, MultiRecording):
-        raise CliError(f"{path}: holds one joint (columns t,u,q,theta); --joint, lists of values and "
-                       "[[joint]] model files are for multi-joint recordings (columns u1,q1,theta1,...)")
-    n = rec.n_joints
-    joints = args.joint or tuple(range(1, n + 1))
-    if max(joints) > n:
-        raise CliError(f"--joint {max(joints)}: {path} holds {n} joints (1-{n})")
-    bases, notes = starting_models(args, model, n)
-    design = window_design(args)
-    problems = {}
-    for j in joints:
-        base = bases[j - 1]
-        try:
-            predictor = Predictor(Measured.from_recording(rec.joint(j), base.gear_ratio), design)
-        except ValueError as exc:
-            raise ValueError(f"joint {j}: {exc}") from None
-        problems[j] = Problem(f"{path} joint {j}", predictor, base, [])
-    return JointProblems(str(path), problems, [f"joint {j}: {m}" for j, m in notes if j in joints])
-
-
-def starting_models(args: argparse.Namespace, model, n: int) -> tuple[list[Structure], list[tuple[int, str]]]:
-    """Each joint's starting structure, and (joint, note) pairs on what a model file could not hold."""
-    gears = one_per_joint("--gear-ratio", args.gear_ratio, n)
-    if model is None:
-        if any(g is None for g in gears):
-            raise CliError("--gear-ratio N[,M...] is required (or a --model file that gives it)")
-        effects = SEED_EFFECTS if args.base is None else effect_list(args.base)
-        return [Structure.create(effects, ArmSpec(), g) for g in gears], []
-    if isinstance(model, SerialArmFile):
-        if len(model.joints) != n:
-            raise CliError(f"--model describes {len(model.joints)} joints; the recording holds {n}")
-        views = single_joint_models(model)
-    else:
-        views = [(model, [])] * n  # one single-joint model for every joint
-    bases, notes = [], []
-    for j, ((single, view_notes), gear) in enumerate(zip(views, gears), start=1):
-        try:
-            base, more = structure_from_model(single, gear)
-        except ValueError as exc:
-            raise CliError(f"joint {j}: {exc}") from None
-        bases.append(base)
-        notes += [(j, m) for m in view_notes + more]
-    return bases, notes
-
-
-# ---- running ---------------------------------------------------------------------------------
 
 def fit_joints(args: argparse.Namespace, out, jp: JointProblems) -> int:
     """``mjjoint fit`` on each selected joint; DIR/joint{j}/ plus a top-level fit.json and index."""

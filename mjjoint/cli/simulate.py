@@ -11,7 +11,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..assets.multi import read_model_file, write_traces_csv
+from ..assets.serial_file import read_model_file
 from ..excitation import EXCITATIONS, FromFile, excitation_fields
 from ..coupling.layout import NSTATE
 from ..modelfile import ModelFile, from_section
@@ -21,6 +21,7 @@ from ..sim import FULL, Simulator, Trace
 from . import closed_loop
 from .chunked import simulate_chunked
 from .errors import PROG, CliError
+from ..trace_recording import write_traces_csv
 from .memory import HEADROOM, check_fits
 
 DEFAULT_OUT = Path("out/simulate")

@@ -52,7 +52,7 @@ def _pointer_fields(header: str, struct: str) -> list[str]:
     return names
 
 
-def _read_u64(address: int) -> int:
+def read_u64(address: int) -> int:
     return ctypes.c_uint64.from_address(address).value
 
 
@@ -64,10 +64,10 @@ def _locate(struct_addr: int, fields: list[str], known: dict[str, int]) -> dict[
     """
     first, first_ptr = next(iter(known.items()))
     for off in range(0, 1 << 21, _PTR):
-        if _read_u64(struct_addr + off) != first_ptr:
+        if read_u64(struct_addr + off) != first_ptr:
             continue
         base = off - _PTR * fields.index(first)
-        if base >= 0 and all(_read_u64(struct_addr + base + _PTR * fields.index(n)) == p
+        if base >= 0 and all(read_u64(struct_addr + base + _PTR * fields.index(n)) == p
                              for n, p in known.items()):
             return {name: base + _PTR * i for i, name in enumerate(fields)}
     raise RuntimeError(f"could not locate {list(known)} in a live MuJoCo {mujoco.__version__} struct")
@@ -109,10 +109,10 @@ def offsets() -> Offsets:
     dd = _locate(d._address, dfields, {n: getattr(d, n).ctypes.data for n in ("qpos", "qvel", "qacc")})
     mm = _locate(m._address, mfields, {n: getattr(m, n).ctypes.data for n in ("jnt_qposadr", "jnt_dofadr")})
     for name in ("qvel", "qfrc_passive", "ctrl", "xpos", "qacc"):
-        if _read_u64(d._address + dd[name]) != getattr(d, name).ctypes.data:
+        if read_u64(d._address + dd[name]) != getattr(d, name).ctypes.data:
             raise RuntimeError(f"mjData.{name} offset check failed for mujoco {mujoco.__version__}")
     for name in ("jnt_type", "jnt_dofadr", "dof_invweight0", "body_mass", "dof_damping", "actuator_gear"):
-        if _read_u64(m._address + mm[name]) != getattr(m, name).ctypes.data:
+        if read_u64(m._address + mm[name]) != getattr(m, name).ctypes.data:
             raise RuntimeError(f"mjModel.{name} offset check failed for mujoco {mujoco.__version__}")
     # opt.timestep (in the embedded mjOption) and d->time precede the pointer runs: found by value.
     m_timestep = _inline_double(m, "opt.timestep", mm["buffer"])

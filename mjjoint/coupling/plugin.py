@@ -68,11 +68,11 @@ def _joint_addresses(m_addr: int, name: str) -> tuple[int, int]:
     if jid < 0:
         raise ValueError(f"joint {name!r} named in the mjjoint.joint config does not exist in the model")
     off = abi.offsets()
-    jtype = ctypes.c_int.from_address(abi._read_u64(m_addr + off.m_jnt_type) + 4 * jid).value
+    jtype = ctypes.c_int.from_address(abi.read_u64(m_addr + off.m_jnt_type) + 4 * jid).value
     if jtype not in _SINGLE_DOF:
         raise ValueError(f"joint {name!r} must be a hinge or slide joint for mjjoint.joint")
-    qpos = ctypes.c_int.from_address(abi._read_u64(m_addr + off.m_jnt_qposadr) + 4 * jid).value
-    dof = ctypes.c_int.from_address(abi._read_u64(m_addr + off.m_jnt_dofadr) + 4 * jid).value
+    qpos = ctypes.c_int.from_address(abi.read_u64(m_addr + off.m_jnt_qposadr) + 4 * jid).value
+    dof = ctypes.c_int.from_address(abi.read_u64(m_addr + off.m_jnt_dofadr) + 4 * jid).value
     return qpos, dof
 
 
@@ -92,8 +92,8 @@ def block_for(m_addr: int, instance: int) -> np.ndarray:
 def _attr_span(m_addr: int, instance: int) -> tuple[int, int]:
     """Address and length of one instance's config values (NUL-separated, key order)."""
     off = abi.offsets()
-    attr = abi._read_u64(m_addr + off.m_plugin_attr)
-    adr = ctypes.c_int.from_address(abi._read_u64(m_addr + off.m_plugin_attradr) + 4 * instance).value
+    attr = abi.read_u64(m_addr + off.m_plugin_attr)
+    adr = ctypes.c_int.from_address(abi.read_u64(m_addr + off.m_plugin_attradr) + 4 * instance).value
     start = attr + adr
     length, seen = 0, 0
     while seen < len(config_keys()):
@@ -149,7 +149,7 @@ def _row_for(m_addr: int, d_addr: int, instance: int) -> int:
             _reported.add((m_addr, instance))
             print(f"mjjoint: plugin instance {instance}: {exc}", file=sys.stderr)
         return -1
-    slots = abi._read_u64(d_addr + abi.offsets().d_plugin_data)
+    slots = abi.read_u64(d_addr + abi.offsets().d_plugin_data)
     ctypes.c_uint64.from_address(slots + 8 * instance).value = row
     return row
 

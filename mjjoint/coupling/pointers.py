@@ -34,11 +34,6 @@ def field(struct, offset):
 
 
 @njit(inline="always")
-def f64_array(address, n):
-    return carray(_as_f64(address), n)
-
-
-@njit(inline="always")
 def i32_array(address, n):
     return carray(_as_i32(address), n)
 

@@ -19,6 +19,7 @@ from mujoco import rollout as mj_rollout
 from ..assets import load_model
 from ..coupling.plugin import PLUGIN_NAME, register
 from ..joint import JointParams
+from ..params import substeps
 
 
 def plugin_block(joint: JointParams) -> str:
@@ -69,10 +70,7 @@ def rollout(model: mujoco.MjModel, u: np.ndarray, sample_rate: float) -> Samples
     Same sampling convention as ``Simulator.run``: row k is the state at k / sample_rate, and
     u[k] acts over [k, k+1) / sample_rate.
     """
-    sub = round(1.0 / (sample_rate * model.opt.timestep))
-    if sub < 1 or abs(sub * model.opt.timestep * sample_rate - 1.0) > 1e-9:
-        raise ValueError(f"sample_rate={sample_rate:g} Hz must be 1/timestep={1 / model.opt.timestep:g} Hz "
-                         "divided by an integer")
+    sub = substeps(sample_rate, model.opt.timestep)
     data = mujoco.MjData(model)
     x0 = np.empty(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
     mujoco.mj_getState(model, data, x0, mujoco.mjtState.mjSTATE_FULLPHYSICS)

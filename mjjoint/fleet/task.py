@@ -104,7 +104,7 @@ def run_task(task: Task) -> list[dict]:
 
 def _diagnose(task: Task) -> None:
     from ..cli.diagnose import diagnose_recording, options_from_args
-    from ..cli.fit import Problem, prepare
+    from ..cli.options import Problem, prepare
     from ..cli.per_joint import diagnose_each_joint
 
     # The command line takes recordings as a list (stacked segments); a task is one of them.

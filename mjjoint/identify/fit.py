@@ -166,11 +166,11 @@ def window_costs(predictor: Predictor, structure: Structure, windows: np.ndarray
     return predictor.window_mean_squares(r, len(windows))
 
 
-class _Converged(Exception):
+class Converged(Exception):
     """Raised from the Jacobian callback when the Gauss-Newton step is shorter than the tolerance."""
 
 
-class _Objective:
+class Objective:
     """One window set's vectorised residual for mujoco.minimize, with the FD Jacobian and the
     step-length stopping rule. It remembers the last Jacobian (with its point and residual) and
     the predictions of the last single-point evaluation, so that neither is recomputed after
@@ -192,7 +192,7 @@ class _Objective:
         r = self._residual(x)
         if r.ndim == 2 and r.shape[1] == 1 and self.costs and self.steps_se[-1] < FAIL_SE \
                 and float(r[:, 0] @ r[:, 0]) >= self.costs[-1]:
-            raise _Converged  # a failed trial step near the optimum (FAIL_SE)
+            raise Converged  # a failed trial step near the optimum (FAIL_SE)
         return r
 
     def jacobian(self, x: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -206,7 +206,7 @@ class _Objective:
         s2 = residual_variance(r[:, 0], x.shape[0])
         gained = (self.costs[-1 - STALL_ITER] - rr) / max(s2, 1e-300) if len(self.costs) > STALL_ITER else np.inf
         if self.steps_se[-1] < self.tol_se or gained < self.tol_se ** 2:
-            raise _Converged
+            raise Converged
         return jac
 
     def final(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -244,7 +244,7 @@ def gauss_newton_step_se(jac: np.ndarray, r: np.ndarray, x: np.ndarray, lo: np.n
     return float(np.sqrt(d2 / max(residual_variance(r, x.size), 1e-300)))
 
 
-def _lm(obj: _Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndarray, int]:
+def _lm(obj: Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndarray, int]:
     """(x, iterations): mujoco.minimize's LM from x0 until the step rule, its xtol or max_iter."""
     iterations = 0
 
@@ -256,7 +256,7 @@ def _lm(obj: _Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.nda
         x, _ = minimize.least_squares(x0, obj.residual, bounds=[obj.lo, obj.hi], jacobian=obj.jacobian,
                                       max_iter=max_iter, xtol=XTOL, mu_min=MU_MIN,
                                       mu_factor=MU_FACTOR, verbose=minimize.Verbosity.SILENT, iter_callback=count)
-    except _Converged:
+    except Converged:
         on_iter(iterations + 1, obj.costs[-1], obj.m)
         return obj.jac_at[0], iterations + 1
     return x.reshape(-1), iterations
@@ -290,11 +290,11 @@ def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int
                                          None if obj is None else obj.prediction(x)))
     subset = coarse_windows(windows, predictor.design.seed)
     if subset is not None:
-        coarse = _Objective(predictor, structure, names, subset, lo, hi, COARSE_SE, scale_at(x, subset))
+        coarse = Objective(predictor, structure, names, subset, lo, hi, COARSE_SE, scale_at(x, subset))
         x, done = _lm(coarse, x, max_iter, _reporter(progress, 0))
     coarse_done, scale = done, scale_at(x, windows)
     for _ in range(SCALE_ROUNDS):
-        obj = _Objective(predictor, structure, names, windows, lo, hi, STEP_SE, scale)
+        obj = Objective(predictor, structure, names, windows, lo, hi, STEP_SE, scale)
         x, k = _lm(obj, x, max_iter, _reporter(progress, done))
         done += k
         new = None if scale is None else scale_at(x, windows, obj)

@@ -3,9 +3,9 @@
 The textbook interval of nonlinear least squares, s^2 (J^T J)^-1, assumes independent residuals.
 Windowed prediction errors are not: a window whose start state is off (an unmeasured friction
 memory, a biased start velocity) stays off for its whole length, so its hundreds of residuals
-carry one error, not hundreds. On the 20 s concealed dynamic_friction recordings (seeds 0-3, the
-true structure fitted from the truth, 44 parameters) that interval left the truth outside it in
-31 of 44 cases, up to 14 standard errors away (docs/benchmark.md, fourteenth look).
+carry one error, not hundreds. Fitting the true structure to closed-loop recordings of a known
+truth, that interval left the truth outside it for most parameters, some by more than ten
+standard errors (CHANGELOG.md, "Benchmark history", has the measurement).
 
 So the windows are treated as the independent units: the covariance is the delete-one-window
 jackknife, linearised at the optimum (for linear least squares it is exact),
@@ -18,7 +18,7 @@ information often sits in a few windows (a breakaway, a step). It is reported on
 wider than the independent-residual one (Angrist and Pischke, *Mostly Harmless Econometrics*,
 Sec. 8.2: the larger of the two, since a robust estimate from few clusters can come out too
 small), which also keeps directions that J'J does not determine at an infinite width. On the
-same 44 parameters the truth fell outside 2 (2SEP's B and K on seed 0, each just past its end).
+same fits it covered the truth for all but a few parameters, each of those just past its end.
 """
 from __future__ import annotations
 

@@ -29,12 +29,13 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 from scipy.signal import savgol_coeffs, savgol_filter
 
-from ..coupling.kernels import friction_history, hysteresis_history, joint_traces, settled_states
+from ..coupling.kernels import friction_history, hysteresis_history, joint_traces
 from ..coupling.layout import (ASYM, AT, B, BW_A, BW_BETA, BW_GAMMA, BW_N, FC, FKIND, FRICTION_2SEP, FS, HYST,
                                NSTATE, QR, SHAPE, SIGMA, VASYM, VS, WSIGN, X, Z1, Z2)
 from ..assets.stability import check_model_stability
 from ..coupling.mjlog import mujoco_log_silenced
 from ..coupling.plugin import register_model
+from ..params import substeps
 from ..physics.stribeck import steady_state
 from ..sim import FULL, joint_indices
 from .structure import Structure
@@ -42,8 +43,8 @@ from .structure import Structure
 SIGNALS = ("q", "delta", "tau")
 # Window-start velocities: a 7 ms cubic Savitzky-Golay derivative. Longer or lower-order
 # filters bias the velocity of the ~40 Hz transmission mode, which then rings through the
-# lightly damped window; 7 ms / order 3 gave the true model the lowest prediction cost on
-# quantised closed-loop recordings (scripts/concealed_benchmark.py cases).
+# lightly damped window; 7 ms / order 3 gives the true model the lowest prediction cost on
+# quantised closed-loop recordings of the shipped arm.
 VELOCITY_WINDOW = 0.007
 VELOCITY_ORDER = 3
 # Rollout output buffer per predict() call [bytes]. MuJoCo writes the full state of every
@@ -208,7 +209,7 @@ def _play(x: np.ndarray, eps: float) -> np.ndarray:
     return y
 
 
-def _window_starts(total: int, n: int, u: np.ndarray, half: int, max_shift: int,
+def window_starts(total: int, n: int, u: np.ndarray, half: int, max_shift: int,
                    joins: tuple[int, ...] = ()) -> np.ndarray:
     """Starts of ``n``-sample windows tiling ``total`` samples, each kept off jumps of u.
 
@@ -258,7 +259,7 @@ class Predictor:
         n = int(round(design.length * measured.rate))
         self.nwin_samples = n
         w0 = int(round(design.warmup * measured.rate))
-        starts = _window_starts(len(measured.t), n, measured.u, _sg_window(1.0 / measured.rate) // 2, w0,
+        starts = window_starts(len(measured.t), n, measured.u, _sg_window(1.0 / measured.rate) // 2, w0,
                                 measured.joins)
         if len(starts) < 8:
             raise ValueError(f"recording of {measured.t[-1] - measured.t[0]:.2f} s is too short for "
@@ -360,7 +361,7 @@ class Predictor:
     def _signals(self, model, full: np.ndarray, ji) -> dict[str, np.ndarray]:
         nw, ns, nx = full.shape
         flat = full.reshape(nw * ns, nx)
-        st, (q, qd, th, thd) = _settled(model, ji, flat)
+        st, (q, qd, th, thd) = ji.settled(model, flat)
         tau, _, _ = joint_traces(ji.block, st, q, qd, th, thd, *ji.steps(model))
         shape = (nw, ns)
         # Copies: views of q and theta would keep all of ``full`` (every state column) alive.
@@ -368,10 +369,7 @@ class Predictor:
                 "delta": (q / ji.gear_ratio - th).reshape(shape), "tau": tau.reshape(shape)}
 
     def _substeps(self, model) -> int:
-        sub = int(round(1.0 / (self.m.rate * model.opt.timestep)))
-        if sub < 1 or abs(sub * model.opt.timestep * self.m.rate - 1) > 1e-6:
-            raise ValueError(f"recording rate {self.m.rate:g} Hz is not 1/timestep divided by an integer")
-        return sub
+        return substeps(self.m.rate, model.opt.timestep, "the recording's rate")
 
     def _initial_states(self, model, i0: np.ndarray, ji) -> np.ndarray:
         """Full MuJoCo states at samples ``i0``: measured motion, internal states from the history."""
@@ -409,7 +407,7 @@ class Predictor:
             # loading-branch guess can be off by the whole loop for the entire window.
             states[:, X] = np.concatenate([hysteresis_history(ji.block, m.delta_path[a:b], s0[X])
                                            for (a, b), s0 in zip(m.segments, start)])[i0]
-        x0[:, ji.state_start:ji.state_start + NSTATE] = states
+        ji.plugin_states(x0)[:] = states
         return x0
 
     def _start_states(self, model, ji, delay: float, windows: np.ndarray) -> np.ndarray:
@@ -439,8 +437,8 @@ class Predictor:
         end = np.empty_like(first)
         for a, b, state in self._rollouts([model] * len(rows), first, ctrl):
             end[a:b] = state[np.arange(b - a), lead[a:b] * sub - 1]  # each at its own window's start
-        st, _ = _settled(model, ji, end)
-        x0[rows, ji.state_start:ji.state_start + X] = st[:, :X]
+        st, _ = ji.settled(model, end)
+        ji.plugin_states(x0)[rows, :X] = st[:, :X]
         self.rollouts += len(rows) * (n - 1) / (len(self.starts) * (self.nwin_samples - 1))
         return x0
 
@@ -528,18 +526,6 @@ def lead_samples(qd: np.ndarray, moving_speed: float, starts: np.ndarray, joins,
     floor = np.maximum(floor, starts - cap)
     prev = np.where(starts > 0, last[np.maximum(starts - 1, 0)], -1)
     return np.where(moving[starts], 0, starts - np.maximum(prev, floor))
-
-
-def _settled(model, ji, flat: np.ndarray):
-    """(internal states, (q, qd, theta, thetad)) of full MuJoCo state rows at their own instants."""
-    q = flat[:, 1 + ji.motor_qpos]
-    qd = flat[:, 1 + model.nq + ji.motor_dof]
-    grounded = ji.link_qpos < 0  # no output side: theta is the world's, 0
-    th = np.zeros_like(q) if grounded else flat[:, 1 + ji.link_qpos]
-    thd = np.zeros_like(q) if grounded else flat[:, 1 + model.nq + ji.link_dof]
-    st = settled_states(ji.block, np.ascontiguousarray(flat[:, ji.state_start:ji.state_start + NSTATE]),
-                        flat[:, 0], q, qd, th, thd, *ji.steps(model))
-    return st, (q, qd, th, thd)
 
 
 def _steady_internal_states(blk, qd, delta):

@@ -65,15 +65,28 @@ def read_recording(
 ) -> Recording | MultiRecording:
     """Read a recording and return it in canonical names and SI units.
 
-    columns: canonical name -> name in the file (see parse_column_map); unmapped signals
-    are looked up under their canonical name. scales: canonical name -> multiplier
-    (see parse_scales). k_m: torque constant [N·m/A]; when given, the u column holds a
-    current and u = k_m * i. allow_extra: accept CSV columns that no signal uses.
     Jittered or non-uniform timestamps are resampled onto a uniform grid by linear
-    interpolation (resample.to_uniform_grid; timestep [s]: make the period a multiple of
-    it); meta['resampled'] says how, and is None for a recording left as recorded.
-    allow_gaps: interpolate across steps longer than 5 median periods instead of refusing.
-    Several joints (u1, q1, theta1, ...) give a MultiRecording. Raises RecordingError.
+    interpolation (resample.to_uniform_grid); meta['resampled'] says how, and is None for a
+    recording left as recorded.
+
+    Args:
+        path: a .csv, .npz or .mat (v5) file.
+        columns: canonical name -> name in the file (see parse_column_map); unmapped signals
+            are looked up under their canonical name.
+        scales: canonical name -> multiplier to SI (see parse_scales).
+        gear_ratio: stored with the recording (motor angle q is before the gear).
+        k_m: torque constant [N m/A]; when given, the u column holds a current and u = k_m i.
+        allow_extra: accept CSV columns that no signal uses.
+        allow_gaps: interpolate across steps longer than 5 median periods instead of refusing.
+        timestep: [s] make the resampled period a multiple of it.
+
+    Returns:
+        A ``Recording`` (t, u, q, theta[, tau], each of shape (n,)), or a ``MultiRecording``
+        for several joints (columns u1, q1, theta1, ...).
+
+    Raises:
+        RecordingError: (a ``ValueError``) a file that cannot be read or signals that fail the
+            checks, in one line naming the column.
     """
     signals, meta = read_signals(path, columns, scales, k_m, allow_extra=allow_extra, allow_gaps=allow_gaps,
                                  timestep=timestep)

@@ -17,6 +17,7 @@ from ..assets import ArmSpec, build_arm, load_model
 from ..coupling.kernels import joint_catch_up, transmitted
 from ..coupling.layout import NSTATE
 from ..joint import JointParams
+from ..params import substeps
 from ..sim import FULL, joint_indices
 from .controller import Controller
 from .reference import LabProgram, on_side
@@ -56,7 +57,7 @@ def run_loop(model: mujoco.MjModel, theta_ref: np.ndarray, controller: Controlle
         top = float(np.min(np.abs(model.actuator_ctrlrange[ji.actuator]))) * ji.k_m
         if controller.u_max > top:
             raise ValueError(f"limit {controller.u_max:g} N m is outside the motor's range (0, {top:g}] N m")
-    sub = int(round(1.0 / (rate * model.opt.timestep)))
+    sub = substeps(rate, model.opt.timestep, "rate")
     if sub < 1 or abs(sub * model.opt.timestep * rate - 1.0) > 1e-9:
         raise ValueError(f"rate={rate:g} Hz must be the model rate 1/timestep={1 / model.opt.timestep:g} Hz "
                          "divided by an integer")

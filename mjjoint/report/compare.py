@@ -69,10 +69,10 @@ def compare(predictor: Predictor, models: dict[str, Structure]) -> Comparison:
         conditions={k: v[idx] for k, v in (("q", m.q), ("theta", m.theta), ("qd", m.qd), ("thetad", m.thetad))
                     if v is not None},
         heldout=np.asarray(predictor.holdout, bool).copy(), cost=cost, owned=predictor.owned.copy(),
-        plant_units=_plant_units(next(iter(models.values())).nominal) if models else {})
+        plant_units=plant_units(next(iter(models.values())).nominal) if models else {})
 
 
-def _plant_units(plant) -> dict[str, str]:
+def plant_units(plant) -> dict[str, str]:
     """The rotary units a plant names otherwise: a direct drive's ``unit`` (m and N on a slide)."""
     unit = getattr(plant, "unit", None)
     return {} if unit is None else {u: unit(u) for u in ROTARY if unit(u) != u}

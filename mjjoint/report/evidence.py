@@ -58,7 +58,7 @@ def plot_evidence(effect: str, cmp: Comparison, before: str, after: str, where: 
         signal = evidence_signal(effect, where, cmp.signals, default_signal)
         fig = _spectrum(cmp, (before, after), signal)
     else:
-        x, xlabel = _condition(effect, cmp)
+        x, xlabel = condition_axis(effect, cmp)
         signal = evidence_signal(effect, where, cmp.signals, default_signal)
         if effect == "torque_ripple":  # equal bins over the revolution, fine enough for k cycles
             k = int(parameters.get("torque_ripple.harmonic", 1))
@@ -70,7 +70,7 @@ def plot_evidence(effect: str, cmp: Comparison, before: str, after: str, where: 
     return save(fig, path)
 
 
-def _condition(effect: str, cmp: Comparison) -> tuple[np.ndarray, str]:
+def condition_axis(effect: str, cmp: Comparison) -> tuple[np.ndarray, str]:
     c = cmp.conditions
     if effect == "gravity":
         return np.sin(c["theta"]), "sin(theta) (measured link angle)"

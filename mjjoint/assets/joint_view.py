@@ -25,9 +25,9 @@ import math
 import mujoco
 import numpy as np
 
-from ..assets import ArmSpec, build_arm, load_model
-from ..assets.multi import SerialArmFile
 from ..modelfile import ModelFile
+from .builder import ArmSpec, build_arm, load_model
+from .serial_file import SerialArmFile
 
 HANGING_TOLERANCE = math.radians(1.0)  # a link's static moment this far off "down" is noted
 

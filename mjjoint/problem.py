@@ -1,0 +1,270 @@
+"""What ``fit`` and ``diagnose`` work on: a recording's prediction windows and a starting structure.
+
+``load_problem`` reads the recording (or takes one already read), builds the starting structure
+from effect names or a model file (its terms mapped onto effects, its values as initial values),
+and gives a ``Problem``; a multi-joint recording gives ``JointProblems``, one single-joint
+problem per selected joint, each from that joint's starting model (``[[joint]]`` model files:
+``assets.joint_view``). The command line and the Python API (``mjjoint.fit``,
+``mjjoint.diagnose``) both build their problems here; ``names`` lets each name its own inputs
+in the one-line ``ValueError`` messages (``gear_ratio`` or ``--gear-ratio``).
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .assets import ArmSpec, DriveSpec
+from .assets.joint_view import single_joint_models
+from .assets.serial_file import SerialArmFile, read_model_file
+from .identify.effects import SEED_EFFECTS, check_effects, plant_effects
+from .identify.from_model import structure_from_model
+from .identify.structure import Structure
+from .identify.windows import Measured, Predictor, WindowDesign
+from .modelfile import ModelFile
+from .recordings import MultiRecording, Recording, read_recording
+from .recordings.resample import describe as describe_resampling
+
+PLANTS = {"arm": "", "linear": "slide", "rotary": "hinge"}  # plant -> direct drive joint type ("": the arm)
+
+
+@dataclass
+class Problem:
+    """One joint's recording as prediction windows, and the structure to start from."""
+
+    source: str
+    predictor: Predictor
+    base: Structure
+    notes: list[str]
+
+
+@dataclass
+class JointProblems:
+    """A multi-joint recording: one ``Problem`` per selected joint (numbered from 1)."""
+
+    source: str
+    problems: dict[int, Problem]
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """How to read a recording and where to start; ``None`` where the recording or model gives it.
+
+    A value per joint (``gear_ratio``, ``k_m``) is one number for every joint or a tuple of one
+    per joint of a multi-joint recording. ``base``: effect names (``()``: the minimal model;
+    ``None``: the seed paper's full joint) or, instead, ``model`` (a model file or its path).
+    ``columns``, ``scales`` and ``allow_gaps`` apply when the recording is a path.
+    """
+
+    gear_ratio: float | tuple[float, ...] | None = None
+    k_m: float | tuple[float, ...] | None = None
+    base: tuple[str, ...] | None = None
+    model: ModelFile | SerialArmFile | str | Path | None = None
+    plant: str = "arm"
+    joints: tuple[int, ...] | None = None
+    design: WindowDesign = WindowDesign()
+    columns: Mapping[str, str] | None = None
+    scales: Mapping[str, float] | None = None
+    allow_gaps: bool = False
+
+
+def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[Recording | str | Path],
+                 inputs: Inputs = Inputs(), names: Mapping[str, str] | None = None) -> Problem | JointProblems:
+    """The problem of ``recording`` under ``inputs``.
+
+    Args:
+        recording: a ``Recording`` (arrays of shape (n,)), a ``MultiRecording``, or the path of
+            a recording file (read with ``inputs.columns``, ``scales``, ``allow_gaps``); or a
+            list of single-joint recordings or paths, stacked as separate segments (no window
+            spans two: ``Measured.stack``).
+        inputs: how to read it and where to start (``Inputs``).
+        names: how the caller names each input in messages (``{"gear_ratio": "--gear-ratio"}``);
+            unnamed inputs keep their Python names.
+
+    Returns:
+        A ``Problem``, or ``JointProblems`` for a multi-joint recording (or inputs only such a
+        recording takes: ``joints``, a tuple per joint, a ``[[joint]]`` model file).
+
+    Raises:
+        ValueError: in one line naming the input, for anything that does not fit.
+    """
+    say = _Names(names or {})
+    for key in ("gear_ratio", "k_m"):
+        value = getattr(inputs, key)
+        for v in value if isinstance(value, tuple) else (value,):
+            if v is not None and not v > 0:
+                raise ValueError(f"{say(key)} {v:g} must be positive")
+    if inputs.joints is not None and (not inputs.joints or min(inputs.joints) < 1):
+        raise ValueError(f"{say('joints')}: joints are numbered from 1, got {inputs.joints!r}")
+    if inputs.plant not in PLANTS:
+        raise ValueError(f"{say('plant')} {inputs.plant!r} is not one of {', '.join(PLANTS)}")
+    if inputs.plant != "arm":
+        return _drive_problem(recording, inputs, say)
+    model = read_model_file(inputs.model) if isinstance(inputs.model, (str, Path)) else inputs.model
+    if _several_joints(inputs, model):
+        return _joint_problems(recording, inputs, model, say)
+    notes: list[str] = []
+    if model is not None:
+        base, notes = _from_model(model, inputs.gear_ratio, say)
+    else:
+        if inputs.gear_ratio is None:
+            raise ValueError(f"{say('gear_ratio')} N is required (or a {say('model')} file that gives it)")
+        base = Structure.create(_effects(inputs.base, say), ArmSpec(), inputs.gear_ratio)
+    recs = [_read(r, inputs, base.gear_ratio, inputs.k_m) for r in _each(recording)]
+    if len(recs) == 1 and not isinstance(recs[0], Recording):
+        return _joint_problems(recording, inputs, model, say, recs[0])
+    predictor = Predictor(_stacked(recording, recs, base.gear_ratio, notes), inputs.design)
+    return Problem(_source(recording), predictor, base, notes)
+
+
+def _each(recording) -> list:
+    """The recordings given: one, or each of a list."""
+    return list(recording) if isinstance(recording, (list, tuple)) else [recording]
+
+
+def _stacked(recording, recs: list, gear_ratio: float, notes: list[str], output: bool = True) -> Measured:
+    """The recordings on one time line, each its own segment (``Measured.stack``); their
+    resampling reported in ``notes``."""
+    several = len(recs) > 1
+    for given, rec in zip(_each(recording), recs):
+        if not isinstance(rec, Recording):
+            raise ValueError(f"{_source(given)}: holds several joints; only single-joint recordings are stacked "
+                             "(give a multi-joint recording alone)")
+        if rec.meta["resampled"] is not None:
+            notes.append(f"{_source(given)}: " * several + describe_resampling(rec.meta["resampled"]))
+    parts = [Measured.from_recording(rec, gear_ratio, output=output) for rec in recs]
+    return parts[0] if not several else Measured.stack(parts)
+
+
+class _Names:
+    """An input's name in messages: as the caller spells it, else its Python name."""
+
+    def __init__(self, names: Mapping[str, str]):
+        self.names = names
+
+    def __call__(self, key: str) -> str:
+        return self.names.get(key, key)
+
+
+def _source(recording) -> str:
+    if isinstance(recording, (list, tuple)):
+        return ", ".join(_source(r) for r in recording)
+    return str(recording) if isinstance(recording, (str, Path)) else "the recording"
+
+
+def _read(recording, inputs: Inputs, gear_ratio: float | None, k_m: float | None) -> Recording | MultiRecording:
+    """The recording as given, or read from its path with the column map and scales."""
+    if isinstance(recording, (Recording, MultiRecording)):
+        if k_m is None:
+            return recording
+        if isinstance(recording, Recording):
+            return recording.with_columns(u=recording.u * k_m)
+        return MultiRecording(tuple(r.with_columns(u=r.u * k_m) for r in recording.joints), recording.meta)
+    return read_recording(recording, columns=inputs.columns, scales=inputs.scales, gear_ratio=gear_ratio,
+                          k_m=k_m, allow_gaps=inputs.allow_gaps)
+
+
+def _effects(base: tuple[str, ...] | None, say, known: tuple[str, ...] | None = None) -> tuple[str, ...]:
+    """The starting effects (``None``: the seed paper's full joint), prerequisites checked."""
+    if base is None:
+        return SEED_EFFECTS
+    try:
+        return check_effects(base, *(() if known is None else (known,)))
+    except ValueError as exc:
+        raise ValueError(f"{say('base')}: {exc}") from None
+
+
+def _from_model(model: ModelFile, gear_ratio: float | None, say) -> tuple[Structure, list[str]]:
+    return structure_from_model(model, gear_ratio, model_name=say("model"), gear_name=say("gear_ratio"))
+
+
+def _drive_problem(recording, inputs: Inputs, say) -> Problem:
+    """A direct drive (plant linear or rotary): its inertia, then the effects listed."""
+    if inputs.model is not None:
+        raise ValueError(f"{say('plant')} {inputs.plant}: a direct drive starts from {say('base')}, "
+                         f"not a {say('model')} file")
+    nominal = DriveSpec(joint_type=PLANTS[inputs.plant])
+    effects = () if inputs.base is None else _effects(inputs.base, say, plant_effects(nominal))
+    base = Structure.create(effects, nominal, 1.0)
+    recs = [_read(r, inputs, 1.0, inputs.k_m) for r in _each(recording)]
+    if not all(isinstance(rec, Recording) for rec in recs):
+        raise ValueError(f"{say('plant')} {inputs.plant} takes single-joint recordings")
+    notes: list[str] = []
+    predictor = Predictor(_stacked(recording, recs, 1.0, notes, output=False), inputs.design)
+    return Problem(_source(recording), predictor, base, notes)
+
+
+# ---- multi-joint recordings ----------------------------------------------------------------
+
+def _several_joints(inputs: Inputs, model) -> bool:
+    """Whether the inputs alone say the recording has several joints."""
+    return (inputs.joints is not None or isinstance(model, SerialArmFile)
+            or isinstance(inputs.gear_ratio, tuple) or isinstance(inputs.k_m, tuple))
+
+
+def _one_per_joint(key: str, value, n: int, say) -> list:
+    """One value per joint from an input given once for all joints or as a tuple of n."""
+    if not isinstance(value, tuple):
+        return [value] * n
+    if len(value) != n:
+        raise ValueError(f"{say(key)} gives {len(value)} values; the recording holds {n} joints "
+                         "(give one value for all, or one per joint)")
+    return list(value)
+
+
+def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | MultiRecording | None = None
+                    ) -> JointProblems:
+    """The selected joints' single-joint problems (one-line errors naming the joint); ``rec``: the
+    recording when already read."""
+    source = _source(recording)
+    if len(_each(recording)) > 1:
+        raise ValueError("several recordings are stacked only when each holds one joint; "
+                         f"{say('joints')}, lists of values and [[joint]] model files take one multi-joint recording")
+    if rec is None:
+        rec = _read(recording, inputs, None, None if isinstance(inputs.k_m, tuple) else inputs.k_m)
+    if isinstance(rec, MultiRecording) and isinstance(inputs.k_m, tuple):
+        ks = _one_per_joint("k_m", inputs.k_m, rec.n_joints, say)
+        rec = MultiRecording(tuple(r.with_columns(u=r.u * k) for r, k in zip(rec.joints, ks)), rec.meta)
+    if not isinstance(rec, MultiRecording):
+        raise ValueError(f"{source}: holds one joint (columns t,u,q,theta); {say('joints')}, lists of values "
+                         "and [[joint]] model files are for multi-joint recordings (columns u1,q1,theta1,...)")
+    n = rec.n_joints
+    joints = inputs.joints or tuple(range(1, n + 1))
+    if max(joints) > n:
+        raise ValueError(f"{say('joints')} {max(joints)}: {source} holds {n} joints (1-{n})")
+    bases, notes = _starting_models(inputs, model, n, say)
+    problems = {}
+    for j in joints:
+        base = bases[j - 1]
+        try:
+            predictor = Predictor(Measured.from_recording(rec.joint(j), base.gear_ratio), inputs.design)
+        except ValueError as exc:
+            raise ValueError(f"joint {j}: {exc}") from None
+        problems[j] = Problem(f"{source} joint {j}", predictor, base, [])
+    return JointProblems(source, problems, [f"joint {j}: {m}" for j, m in notes if j in joints])
+
+
+def _starting_models(inputs: Inputs, model, n: int, say) -> tuple[list[Structure], list[tuple[int, str]]]:
+    """Each joint's starting structure, and (joint, note) pairs on what a model file could not hold."""
+    gears = _one_per_joint("gear_ratio", inputs.gear_ratio, n, say)
+    if model is None:
+        if any(g is None for g in gears):
+            raise ValueError(f"{say('gear_ratio')} N[,M...] is required (or a {say('model')} file that gives it)")
+        effects = _effects(inputs.base, say)
+        return [Structure.create(effects, ArmSpec(), g) for g in gears], []
+    if isinstance(model, SerialArmFile):
+        if len(model.joints) != n:
+            raise ValueError(f"{say('model')} describes {len(model.joints)} joints; the recording holds {n}")
+        views = single_joint_models(model)
+    else:
+        views = [(model, [])] * n  # one single-joint model for every joint
+    bases, notes = [], []
+    for j, ((single, view_notes), gear) in enumerate(zip(views, gears), start=1):
+        try:
+            base, more = _from_model(single, gear, say)
+        except ValueError as exc:
+            raise ValueError(f"joint {j}: {exc}") from None
+        bases.append(base)
+        notes += [(j, m) for m in view_notes + more]
+    return bases, notes
