@@ -133,10 +133,11 @@ def test_finished_needs_the_same_inputs_and_options(fleet, serial_run, tmp_path)
     assert finished(task)
     assert not finished(Task("delayed", arguments, out / "delayed", input_hash({**arguments, "seed": 1})))
     changed = tmp_path / "delayed.csv"
-    changed.write_bytes(Path(arguments["recording"]).read_bytes().replace(b"\n", b"\r\n", 1))
-    assert input_hash({**arguments, "recording": str(changed)}) != task.input_hash
+    (recorded,) = arguments["recording"]  # run.json lists the command line's recordings
+    changed.write_bytes(Path(recorded).read_bytes().replace(b"\n", b"\r\n", 1))
+    assert input_hash({**arguments, "recording": [str(changed)]}) != task.input_hash
     # where the data lies and how the work is spread do not count
-    assert input_hash({**arguments, "workers": 4, "recording": str(Path(arguments["recording"]))}) == task.input_hash
+    assert input_hash({**arguments, "workers": 4, "recording": [str(Path(recorded))]}) == task.input_hash
 
 
 def same_results(out: Path, reference: Path) -> None:

@@ -149,7 +149,8 @@ def run_fleet(args: argparse.Namespace, spec: Path) -> int:
                + (f" ({reused} from an earlier run)" if reused else "")
                + (f", {len(failed)} failed ({', '.join(failed)})" if failed else ""))
     run = {"command": "diagnose", "recordings": [t.recording for t in tasks], "engine": where,
-           "arguments": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items() if k != "handler"},
+           "arguments": {**{k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items() if k != "handler"},
+                         "recording": str(spec)},
            "seconds": round(time.perf_counter() - start, 3), "summary": summary}
     write_fleet(out, FIELDS, [r for t in tasks for r in results[t.name]], str(spec), run)
     print(f"fleet: {summary}")

@@ -63,12 +63,13 @@ def input_hash(arguments: dict) -> str:
 
     files = {}
     for key in HASHED_FILES:
-        path = arguments.get(key)
-        if path is not None:
+        paths = arguments.get(key)
+        # A task's recording is one path; run.json's arguments list the command line's recordings.
+        for i, path in enumerate(paths if isinstance(paths, list) else [] if paths is None else [paths]):
             try:
-                files[key] = _file_digest(Path(path))
+                files[f"{key}{i or ''}"] = _file_digest(Path(path))
             except OSError as exc:
-                files[key] = f"unreadable: {exc.strerror}"
+                files[f"{key}{i or ''}"] = f"unreadable: {exc.strerror}"
     options = {k: v for k, v in arguments.items() if k not in NOT_HASHED}
     text = json.dumps({"version": __version__, "files": files, "options": options}, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()
