@@ -14,8 +14,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from ..assets import ArmSpec, DriveSpec
 from ..assets.multi import read_model_file
+from ..identify.initial import estimate
 from ..identify.effects import EFFECTS, SEED_EFFECTS, check_effects, plant_effects
 from ..identify.structure import Structure
 from ..identify.windows import MAX_LEAD, Measured, Predictor, WindowDesign
@@ -29,6 +32,7 @@ from .errors import CliError
 
 DEFAULT_OUT = Path("out/fit")
 PLANTS = {"arm": "", "linear": "slide", "rotary": "hinge"}  # --plant -> direct drive joint type
+FIT_SIGNALS = {"q": "q", "theta": "delta", "tau": "tau"}  # --fit-signals name -> the cost's signal
 MINIMAL = "minimal"
 
 EPILOG = """\
@@ -102,6 +106,9 @@ def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
                    help="longest simulated lead-in of a window that starts at rest, for 2SEP's "
                         f"states (default {WindowDesign.lead:g} s; 0: none)")
     w.add_argument("--seed", type=int, default=0, metavar="S", help="which windows are held out (default 0)")
+    w.add_argument("--fit-signals", metavar="LIST",
+                   help="signals the cost scores, a comma list among q, theta (as the deflection q/N - theta), "
+                        "tau (default: every one recorded)")
     p.add_argument("--out", type=Path, default=default_out, metavar="DIR",
                    help=f"output folder (default {default_out}; {DESTINATION_RULE})")
 
@@ -249,23 +256,56 @@ def load_problem(args: argparse.Namespace):
     if rec.meta["resampled"] is not None:
         notes.append(describe_resampling(rec.meta["resampled"]))
     design = window_design(args)
-    predictor = Predictor(Measured.from_recording(rec, base.gear_ratio), design)
-    return Problem(str(args.recording), predictor, base, notes)
+    measured = Measured.from_recording(rec, base.gear_ratio)
+    predictor = make_predictor(measured, design, args)
+    return Problem(str(args.recording), predictor, started(base, measured, model is not None), notes)
+
+
+def started(base: Structure, measured: Measured, from_model: bool) -> Structure:
+    """``base`` with ranges and initial values from the recording (``identify.initial``); a
+    model file's values are the user's and stay."""
+    start = estimate(measured, base.nominal.link_inertia)
+    return base.started(start, keep=tuple(base.values) if from_model else ())
 
 
 def _drive_problem(args: argparse.Namespace) -> Problem:
     """A direct drive (``--plant linear|rotary``): its inertia, then the effects listed."""
     if args.model is not None:
         raise CliError(f"--plant {args.plant}: a direct drive starts from --base, not a --model file")
-    nominal = DriveSpec(joint_type=PLANTS[args.plant])
-    effects = () if args.base is None else effect_list(args.base, known=plant_effects(nominal))
-    base = Structure.create(effects, nominal, 1.0)
+    effects = () if args.base is None else effect_list(args.base, known=plant_effects(DriveSpec()))
     rec = read_input(args, 1.0, args.k_m)
     if not isinstance(rec, Recording):
         raise CliError(f"--plant {args.plant} takes a single-joint recording")
     design = window_design(args)
     notes = [] if rec.meta["resampled"] is None else [describe_resampling(rec.meta["resampled"])]
-    return Problem(str(args.recording), Predictor(Measured.from_recording(rec, 1.0, output=False), design), base, notes)
+    measured = Measured.from_recording(rec, 1.0, output=False)
+    # The drive's size comes from the recording, not from the shipped (EMPS) DriveSpec.
+    start = estimate(measured)
+    # The recorded force is what was applied: the amplifier's limit must not clip it.
+    limit = max(DriveSpec.ctrl_limit, 1.01 * float(np.max(np.abs(measured.u))) / DriveSpec.k_m)
+    nominal = DriveSpec(joint_type=PLANTS[args.plant], ctrl_limit=limit,
+                        v_eps=start.v_eps(DriveSpec.timestep, DriveSpec.v_eps))
+    base = Structure.create(effects, nominal, 1.0, start=start)
+    return Problem(str(args.recording), make_predictor(measured, design, args), base, notes)
+
+
+def fit_signals(text: str | None) -> tuple[str, ...] | None:
+    """--fit-signals: a comma list among q, theta (scored as the deflection q/N - theta), tau."""
+    if text is None:
+        return None
+    names = tuple(dict.fromkeys(n.strip() for n in text.split(",") if n.strip()))
+    if not names or any(n not in FIT_SIGNALS for n in names):
+        raise CliError(f"--fit-signals {text!r}: choose among {', '.join(FIT_SIGNALS)}")
+    return tuple(dict.fromkeys(FIT_SIGNALS[n] for n in names))
+
+
+def make_predictor(measured: Measured, design: WindowDesign, args: argparse.Namespace) -> Predictor:
+    """The windowed predictor scoring the signals --fit-signals names, each one recorded."""
+    signals = fit_signals(args.fit_signals)
+    missing = [n for n, s in FIT_SIGNALS.items() if s in (signals or ()) and getattr(measured, n) is None]
+    if missing:
+        raise CliError(f"--fit-signals: the recording has no {missing[0]} (for this plant)")
+    return Predictor(measured, design, fit_signals=signals)
 
 
 def window_design(args: argparse.Namespace) -> WindowDesign:

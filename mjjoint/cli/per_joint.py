@@ -20,10 +20,11 @@ from ..assets import ArmSpec
 from ..assets.multi import SerialArmFile
 from ..identify.effects import SEED_EFFECTS
 from ..identify.structure import Structure
-from ..identify.windows import Measured, Predictor
+from ..identify.windows import Measured
 from ..recordings import MultiRecording, Recording
 from .errors import CliError
-from .fit import Problem, effect_list, read_input, run_info, structure_from_model, window_design
+from .fit import (Problem, effect_list, make_predictor, read_input, run_info, started, structure_from_model,
+                  window_design)
 from .joint_view import single_joint_models
 
 COUPLING = ("each joint was diagnosed alone, so the other joints' motion (their inertia, Coriolis and gravity "
@@ -75,10 +76,11 @@ def load_problems(args: argparse.Namespace, model, rec: MultiRecording | Recordi
     for j in joints:
         base = bases[j - 1]
         try:
-            predictor = Predictor(Measured.from_recording(rec.joint(j), base.gear_ratio), design)
+            measured = Measured.from_recording(rec.joint(j), base.gear_ratio)
+            predictor = make_predictor(measured, design, args)
         except ValueError as exc:
             raise ValueError(f"joint {j}: {exc}") from None
-        problems[j] = Problem(f"{args.recording} joint {j}", predictor, base, [])
+        problems[j] = Problem(f"{args.recording} joint {j}", predictor, started(base, measured, model is not None), [])
     return JointProblems(str(args.recording), problems, [f"joint {j}: {m}" for j, m in notes if j in joints])
 
 

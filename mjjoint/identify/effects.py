@@ -43,9 +43,10 @@ class Param:
     def from_unit(self, x: float) -> float:
         return math.exp(min(x, 700.0)) if self.log else x  # an infinite interval stays finite
 
-    def for_plant(self, plant) -> "Param":
-        """This parameter for a plant of other force/speed/position orders and units."""
-        s = plant.scales
+    def for_plant(self, plant, scales: dict[str, float] | None = None) -> "Param":
+        """This parameter for a plant of other force/speed/position orders (``scales``, by
+        default the plant's own) and units."""
+        s = plant.scales if scales is None else scales
         f = DIMENSIONS[self.dim](s["force"], s["speed"], s["position"])
         unit = plant.unit(self.unit)
         if f == 1.0 and unit == self.unit:

@@ -215,9 +215,16 @@ def _sg_window(dt: float) -> int:
 class Predictor:
     """Windowed predictions of one recording for any number of model structures."""
 
-    def __init__(self, measured: Measured, design: WindowDesign = WindowDesign(), nthread: int | None = None):
+    def __init__(self, measured: Measured, design: WindowDesign = WindowDesign(), nthread: int | None = None,
+                 fit_signals: tuple[str, ...] | None = None):
+        """``fit_signals``: the measured signals the cost scores (default all of SIGNALS the
+        recording has); NRMSE still reports every one."""
+        unknown = sorted(set(fit_signals or ()) - set(SIGNALS))
+        if unknown:
+            raise ValueError(f"fit_signals: {unknown[0]!r} is not allowed (allowed: {', '.join(SIGNALS)})")
         self.m = measured
         self.design = design
+        self.fit_signals = fit_signals
         n = int(round(design.length * measured.rate))
         self.nwin_samples = n
         w0 = int(round(design.warmup * measured.rate))
@@ -258,7 +265,8 @@ class Predictor:
 
     @property
     def signals(self) -> tuple[str, ...]:
-        return tuple(s for s in SIGNALS if self.meas.get(s) is not None)
+        return tuple(s for s in SIGNALS if self.meas.get(s) is not None
+                     and (self.fit_signals is None or s in self.fit_signals))
 
     # ---- prediction --------------------------------------------------------------------
     def predict(self, structures: list[Structure], windows: np.ndarray | None = None) -> list[dict[str, np.ndarray]]:
