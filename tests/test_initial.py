@@ -106,3 +106,28 @@ def test_the_estimator_recovers_the_gear_stiffness_from_the_torque_and_the_reson
     e = estimate(untorqued, arm.link_inertia)
     assert e.resonance is not None
     assert e.values["linear_stiffness.k1"] == pytest.approx(k1, rel=0.25)
+
+
+def test_a_fit_started_off_ends_on_a_bound_and_restarts_recover_the_truth():
+    """J started a thousandfold low and Fc three hundredfold high: the single fit ends with
+    parameters on their bounds and says which; restarts from the recording's estimates reach
+    the truth, with nothing on a bound."""
+    from mjjoint.identify.fit import fit
+    from mjjoint.identify.windows import Predictor, WindowDesign
+    j, fc = SMALL[:2]
+    measured = Measured.from_recording(servo_recording(*SMALL, duration=3.0), 1.0, output=False)
+    start = estimate(measured)
+    nominal = DriveSpec(joint_type="hinge", v_eps=start.v_eps(DriveSpec.timestep, DriveSpec.v_eps))
+    s = Structure.create(("coulomb_friction", "viscous_friction"), nominal, 1.0, start=start)
+    lo = {p.name: p.lo for p in s.params}
+    hi = {p.name: p.hi for p in s.params}
+    off = s.with_values({"inertia.motor": lo["inertia.motor"], "coulomb_friction.fc": hi["coulomb_friction.fc"],
+                         "viscous_friction.sigma": hi["viscous_friction.sigma"]})
+    pred = Predictor(measured, WindowDesign(length=0.25))
+    single = fit(pred, off, max_iter=10)
+    assert single.on_bound and single.as_dict()["on_bound"] == list(single.on_bound)
+    assert all(f"{n} = " in w and "bound" in w for n, w in zip(single.on_bound, single.warnings))
+    best = fit(pred, off, max_iter=10, restarts=2)
+    assert best.starts == 3 and best.on_bound == ()
+    assert best.structure.values["inertia.motor"] == pytest.approx(j, rel=0.05)
+    assert best.structure.values["coulomb_friction.fc"] == pytest.approx(fc, rel=0.05)

@@ -125,16 +125,8 @@ class Measured:
 
     @cached_property
     def q_noise(self) -> float:
-        """Measurement noise (std) of q: robust spread of q about its Savitzky-Golay smoothing.
-
-        The median absolute deviation ignores the few samples where the smoothing misses fast
-        motion; the factor undoes the share of the noise the smoothing itself follows. On a
-        15-bit resolver it returns the quantisation step / sqrt(12) within 10 %.
-        """
-        win = _sg_window(1.0 / self.rate)
-        r = self.q - savgol_filter(self.q, win, VELOCITY_ORDER)
-        follow = savgol_coeffs(win, VELOCITY_ORDER)[win // 2]
-        return float(1.4826 * np.median(np.abs(r - np.median(r))) / np.sqrt(1.0 - follow))
+        """Measurement noise (std) of q (``noise_std``)."""
+        return noise_std(self.q, self.rate)
 
     @cached_property
     def q_path(self) -> np.ndarray:
@@ -158,6 +150,19 @@ class Measured:
         deriv = lambda x: None if x is None else savgol_filter(x, win, VELOCITY_ORDER, deriv=1, delta=dt)  # noqa: E731
         return cls(t=grid, qd=deriv(cols["q"]), thetad=deriv(cols["theta"]),
                    gear_ratio=float(gear_ratio), rate=1.0 / dt, **cols)
+
+
+def noise_std(x: np.ndarray, rate: float) -> float:
+    """Measurement noise (std) of a signal: robust spread of x about its Savitzky-Golay smoothing.
+
+    The median absolute deviation ignores the few samples where the smoothing misses fast
+    motion; the factor undoes the share of the noise the smoothing itself follows. On a
+    15-bit resolver it returns the quantisation step / sqrt(12) within 10 %.
+    """
+    win = _sg_window(1.0 / rate)
+    r = x - savgol_filter(x, win, VELOCITY_ORDER)
+    follow = savgol_coeffs(win, VELOCITY_ORDER)[win // 2]
+    return float(1.4826 * np.median(np.abs(r - np.median(r))) / np.sqrt(1.0 - follow))
 
 
 def _play(x: np.ndarray, eps: float) -> np.ndarray:
@@ -466,6 +471,13 @@ class Predictor:
             err = pred[s][:, self.cols] - meas
             out[s] = float(np.sqrt(np.mean(err ** 2)) / max(np.sqrt(np.mean(spread ** 2)), 1e-300))
         return out
+
+    @cached_property
+    def noise_floor(self) -> float:
+        """The cost measurement noise alone gives: the mean over the scored signals of
+        (noise std / normalisation)^2 (``noise_std``)."""
+        full = {"q": self.m.q, "delta": self.m.delta, "tau": self.m.tau}
+        return float(np.mean([(noise_std(full[s], self.m.rate) / self.scale[s]) ** 2 for s in self.signals]))
 
     @property
     def train(self) -> np.ndarray:
