@@ -105,6 +105,19 @@ class Structure:
             model = EFFECTS[name].apply(model, v)
         return model
 
+    def measured(self, pred: dict, rate: float) -> dict:
+        """Predicted signals as this structure's sensors report them (sensor effects)."""
+        v = {**self.values, **self.settings}
+        for name in self.effects:
+            if EFFECTS[name].measure is not None:
+                pred = EFFECTS[name].measure(pred, v, rate)
+        return pred
+
+    @property
+    def skew(self) -> float:
+        """[s] how late the link encoder reads (``sensor_skew``; 0 without it)."""
+        return self.values.get("sensor_skew.lag", 0.0) if "sensor_skew" in self.effects else 0.0
+
     def compile(self) -> mujoco.MjModel:
         return load_model(build_plant(*self.model_params()))
 

@@ -284,10 +284,11 @@ class Predictor:
             done = iter(self.predict(good, windows) if good else [])
             nan = np.full((len(windows), self.nwin_samples), np.nan)
             return [next(done) if ok else {k: nan for k in ("q", "theta", "delta", "tau")} for ok in stable]
-        models, delays = [], []
+        models, delays, skews = [], [], []
         for s in structures:
             arm, joint = s.model_params()
             delays.append(arm.input_delay)
+            skews.append(s.skew)
             models.append(_compile(arm, joint))
         sig = {_signature(m) for m in models}
         if len(sig) > 1:
@@ -296,7 +297,8 @@ class Predictor:
             register_model(mod)  # a memoised model's registry row may have been recycled
         jis = [joint_indices(mod)[0] for mod in models]  # parsed once per model and call
         i0 = self.starts[windows]
-        x0 = np.concatenate([self._start_states(mod, ji, d, windows) for mod, d, ji in zip(models, delays, jis)])
+        x0 = np.concatenate([self._start_states(mod, ji, d, windows, k)
+                             for mod, d, ji, k in zip(models, delays, jis, skews)])
         ctrl = np.concatenate([self._controls(mod, i0, self.nwin_samples, d, ji)
                                for mod, d, ji in zip(models, delays, jis)])
         batch_models = [mod for mod in models for _ in windows]
@@ -309,7 +311,8 @@ class Predictor:
                 picked = state[lo - a:hi - a, sub - 1::sub][:, : self.nwin_samples - 1]
                 parts[k].append(self._signals(models[k], np.concatenate([x0[lo:hi, None], picked], axis=1), jis[k]))
         self.rollouts += len(structures) * len(windows) / len(self.starts)
-        return [p[0] if len(p) == 1 else {s: np.concatenate([q[s] for q in p]) for s in p[0]} for p in parts]
+        preds = [p[0] if len(p) == 1 else {s: np.concatenate([q[s] for q in p]) for s in p[0]} for p in parts]
+        return [s.measured(p, self.m.rate) for s, p in zip(structures, preds)]
 
     def _rollouts(self, models: list, x0: np.ndarray, ctrl: np.ndarray):
         """Roll out rows (models, x0, ctrl) in chunks that fit ROLLOUT_BUFFER; yields (a, b,
@@ -349,8 +352,11 @@ class Predictor:
             raise ValueError(f"recording rate {self.m.rate:g} Hz is not 1/timestep divided by an integer")
         return sub
 
-    def _initial_states(self, model, i0: np.ndarray, ji) -> np.ndarray:
-        """Full MuJoCo states at samples ``i0``: measured motion, internal states from the history."""
+    def _initial_states(self, model, i0: np.ndarray, ji, skew: float = 0.0) -> np.ndarray:
+        """Full MuJoCo states at samples ``i0``: measured motion, internal states from the history.
+
+        ``skew`` [s]: the link encoder reads that late, so the link's state at a start is the one
+        it reports ``skew`` later."""
         d = mujoco.MjData(model)
         mujoco.mj_resetData(model, d)
         template = np.empty(mujoco.mj_stateSize(model, FULL))
@@ -361,8 +367,10 @@ class Predictor:
         x0[:, 1 + ji.motor_qpos] = m.q[i0]
         x0[:, 1 + model.nq + ji.motor_dof] = m.qd[i0]
         if ji.link_qpos >= 0:
-            x0[:, 1 + ji.link_qpos] = m.theta[i0]
-            x0[:, 1 + model.nq + ji.link_dof] = m.thetad[i0]
+            at = np.clip(i0 + skew * m.rate, 0, len(m.t) - 1)
+            samples = np.arange(len(m.t))
+            x0[:, 1 + ji.link_qpos] = np.interp(at, samples, m.theta)
+            x0[:, 1 + model.nq + ji.link_dof] = np.interp(at, samples, m.thetad)
         # Flexible segments of the link move with the hub at the window start.
         delta = np.zeros(len(i0)) if m.delta is None else m.delta[i0]
         states = _steady_internal_states(ji.block, m.qd[i0], delta)
@@ -382,7 +390,7 @@ class Predictor:
         x0[:, ji.state_start:ji.state_start + NSTATE] = states
         return x0
 
-    def _start_states(self, model, ji, delay: float, windows: np.ndarray) -> np.ndarray:
+    def _start_states(self, model, ji, delay: float, windows: np.ndarray, skew: float = 0.0) -> np.ndarray:
         """Full MuJoCo states at the starts of ``windows``; for 2SEP, those that start at rest take
         2SEP's states from a lead-in.
 
@@ -399,7 +407,7 @@ class Predictor:
         rows = np.flatnonzero(lead > 0)
         lead = lead[rows]
         # One history run serves the window starts and the lead-ins' starts.
-        x = self._initial_states(model, np.concatenate([i0, i0[rows] - lead]), ji)
+        x = self._initial_states(model, np.concatenate([i0, i0[rows] - lead]), ji, skew)
         x0, first = x[:len(i0)], x[len(i0):]
         if rows.size == 0:
             return x0
