@@ -5,53 +5,20 @@ from __future__ import annotations
 import dataclasses
 import json
 
-import mujoco
-import numpy as np
 import pytest
 
-from mjjoint.assets import load_model
-from mjjoint.assets.drive import DriveSpec, build_drive
-from mjjoint.identify.initial import DECADES, SLOPE_STEP, estimate
+from mjjoint.assets.drive import DriveSpec
+from mjjoint.experiments.servo import LARGE, SMALL, geared_recording, servo_recording
+from mjjoint.identify.initial import DECADES, estimate
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured
-from mjjoint.joint import JointParams
-from mjjoint.physics.stribeck import StaticFriction
-from mjjoint.physics.transmission import Transmission
-from mjjoint.recordings import Recording, write_recording
-
-# (inertia [kg m^2], Coulomb [N m], viscous [N m s/rad], reference amplitude [rad], its base
-# frequency [Hz]): a small servo motor and a large robot-axis motor, 5 decades apart.
-SMALL = (1e-4, 0.03, 2e-4, 2.0, 3.0)
-LARGE = (10.0, 50.0, 20.0, 0.5, 1.0)
-
-
-def servo_recording(j: float, fc: float, sigma: float, amplitude: float, f0: float,
-                    duration: float = 6.0) -> Recording:
-    """A rotary direct drive under a PD position loop (10 Hz bandwidth, 0.7 damping) tracking
-    three sines at f0, 2.3 f0 and 3.7 f0; noise-free."""
-    spec = DriveSpec(joint_type="hinge", mass=j, k_m=1.0, ctrl_limit=1e9, input_offset=0.0)
-    # The sign regularisation as the fit will choose it (initial.Estimate.v_eps).
-    v_eps = max(spec.v_eps, fc * spec.timestep / (SLOPE_STEP * j))
-    friction = StaticFriction(fc=fc, fs=fc, sigma=sigma, v_eps=v_eps)
-    model = load_model(build_drive(spec, JointParams(friction=friction)))
-    d = mujoco.MjData(model)
-    h = model.opt.timestep
-    t = h * np.arange(int(round(duration / h)))
-    ref = amplitude * sum(np.sin(2 * np.pi * k * f0 * t + k) for k in (1.0, 2.3, 3.7)) / 3
-    w = 2 * np.pi * 10.0
-    q, u = np.empty(len(t)), np.empty(len(t))
-    for i in range(len(t)):
-        q[i] = d.qpos[0]
-        u[i] = j * w * w * (ref[i] - q[i]) - 1.4 * j * w * d.qvel[0]
-        d.ctrl[0] = u[i]
-        mujoco.mj_step(model, d)
-    return Recording(t=t, u=u, q=q, theta=q)
+from mjjoint.recordings import write_recording
 
 
 @pytest.mark.parametrize("case", [SMALL, LARGE], ids=["small", "large"])
 def test_the_estimator_recovers_a_drives_inertia_and_friction(case):
-    j, fc, sigma = case[:3]
-    e = estimate(Measured.from_recording(servo_recording(*case), 1.0, output=False))
+    j, fc, sigma = case.inertia, case.coulomb, case.viscous
+    e = estimate(Measured.from_recording(servo_recording(case), 1.0, output=False))
     # Start values, for a fit that may move each DECADES either way: the inertia within 5 %,
     # the friction levels (which the J a term dwarfs on the large drive) within half.
     assert e.values["inertia.motor"] == pytest.approx(j, rel=0.05)
@@ -66,9 +33,9 @@ def test_the_estimator_recovers_a_drives_inertia_and_friction(case):
 @pytest.mark.parametrize("case", [SMALL, LARGE], ids=["small", "large"])
 def test_fit_plant_rotary_recovers_motors_decades_apart_with_no_scales(case, tmp_path, capsys):
     from mjjoint.cli import main
-    j, fc = case[:2]
+    j, fc = case.inertia, case.coulomb
     rec = tmp_path / "servo.csv"
-    write_recording(rec, servo_recording(*case))
+    write_recording(rec, servo_recording(case))
     out = tmp_path / "fit"
     assert main(["fit", str(rec), "--plant", "rotary", "--base", "coulomb_friction,viscous_friction",
                  "--window-length", "0.5", "--max-iter", "15", "--out", str(out)]) == 0
@@ -80,22 +47,9 @@ def test_fit_plant_rotary_recovers_motors_decades_apart_with_no_scales(case, tmp
     assert "kg m^2" in capsys.readouterr().out  # rotary units, SI
 
 
-def arm_recording(k1: float, tau: bool = True) -> Measured:
-    """The shipped arm (rigid rod, no gravity, Coulomb + viscous motor friction, a linear gear)
-    under an 80 -> 1 Hz chirp (through the gear's resonance), noise-free."""
-    import mjjoint
-    from mjjoint.assets import ArmSpec
-    arm = ArmSpec(segments=0, gravity=0.0)
-    joint = JointParams(friction=StaticFriction(fc=0.05, fs=0.05, sigma=2e-4), load_friction=None,
-                        transmission=Transmission(gear_ratio=160.0, k1=k1, k3=0.0, damping=1.0, hysteresis=None))
-    trace = mjjoint.simulate(mjjoint.Chirp(f_start=80.0).sample(1000, 5), arm=arm, joint=joint)
-    rec = Recording(t=trace.t, u=trace.u, q=trace.q, theta=trace.theta, tau=trace.tau if tau else None)
-    return Measured.from_recording(rec, 160.0), arm
-
-
 @pytest.mark.parametrize("k1", [3e3, 3e4])
 def test_the_estimator_recovers_the_gear_stiffness_from_the_torque_and_the_resonance(k1):
-    measured, arm = arm_recording(k1)
+    measured, arm = geared_recording(k1)
     e = estimate(measured, arm.link_inertia)
     assert e.values["linear_stiffness.k1"] == pytest.approx(k1, rel=0.05)
     assert e.values["inertia.motor"] == pytest.approx(arm.motor_inertia, rel=0.05)
@@ -114,8 +68,8 @@ def test_a_fit_started_off_ends_on_a_bound_and_restarts_recover_the_truth():
     the truth, with nothing on a bound."""
     from mjjoint.identify.fit import fit
     from mjjoint.identify.windows import Predictor, WindowDesign
-    j, fc = SMALL[:2]
-    measured = Measured.from_recording(servo_recording(*SMALL, duration=3.0), 1.0, output=False)
+    j, fc = SMALL.inertia, SMALL.coulomb
+    measured = Measured.from_recording(servo_recording(SMALL, duration=3.0), 1.0, output=False)
     start = estimate(measured)
     nominal = DriveSpec(joint_type="hinge", v_eps=start.v_eps(DriveSpec.timestep, DriveSpec.v_eps))
     s = Structure.create(("coulomb_friction", "viscous_friction"), nominal, 1.0, start=start)

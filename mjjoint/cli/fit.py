@@ -280,14 +280,18 @@ def _drive_problem(args: argparse.Namespace) -> Problem:
     design = window_design(args)
     notes = [] if rec.meta["resampled"] is None else [describe_resampling(rec.meta["resampled"])]
     measured = Measured.from_recording(rec, 1.0, output=False)
-    # The drive's size comes from the recording, not from the shipped (EMPS) DriveSpec.
+    base = drive_structure(effects, PLANTS[args.plant], measured)
+    return Problem(str(args.recording), make_predictor(measured, design, args), base, notes)
+
+
+def drive_structure(effects, joint_type: str, measured: Measured) -> Structure:
+    """A direct drive's starting structure, its size from the recording (``identify.initial``),
+    not from the shipped (EMPS) DriveSpec."""
     start = estimate(measured)
     # The recorded force is what was applied: the amplifier's limit must not clip it.
     limit = max(DriveSpec.ctrl_limit, 1.01 * float(np.max(np.abs(measured.u))) / DriveSpec.k_m)
-    nominal = DriveSpec(joint_type=PLANTS[args.plant], ctrl_limit=limit,
-                        v_eps=start.v_eps(DriveSpec.timestep, DriveSpec.v_eps))
-    base = Structure.create(effects, nominal, 1.0, start=start)
-    return Problem(str(args.recording), make_predictor(measured, design, args), base, notes)
+    nominal = DriveSpec(joint_type=joint_type, ctrl_limit=limit, v_eps=start.v_eps(DriveSpec.timestep, DriveSpec.v_eps))
+    return Structure.create(effects, nominal, 1.0, start=start)
 
 
 def fit_signals(text: str | None) -> tuple[str, ...] | None:

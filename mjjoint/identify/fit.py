@@ -295,13 +295,14 @@ def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int
 
 def restart_points(structure: Structure, names, count: int, seed: int) -> list[Structure]:
     """``count`` starting points: the parameters' initial values (the recording's estimates
-    where the structure has them), then seeded draws around them, RESTART_DECADES (normal std)
-    in log coordinates, uniform over the range for linear ones, clipped to the bounds."""
+    where the structure has them) unless the structure starts there already, then seeded draws
+    around them, RESTART_DECADES (normal std) in log coordinates, uniform over the range for
+    linear ones, clipped to the bounds."""
     params = [p for p in structure.params if names is None or p.name in names]
     initial = structure.with_values({p.name: p.initial for p in params})
-    points = [initial]
+    points = [] if np.array_equal(initial.vector(names), structure.vector(names)) else [initial]
     rng = np.random.default_rng([seed, count])
-    for _ in range(count - 1):
+    while len(points) < count:
         values = {}
         for p in params:
             if p.log:
