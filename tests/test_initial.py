@@ -12,6 +12,7 @@ from mjjoint.experiments.servo import LARGE, SMALL, geared_recording, servo_reco
 from mjjoint.identify.initial import DECADES, estimate
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured
+from mjjoint.joint import JointParams
 from mjjoint.recordings import write_recording
 
 
@@ -85,3 +86,19 @@ def test_a_fit_started_off_ends_on_a_bound_and_restarts_recover_the_truth():
     assert best.starts == 3 and best.on_bound == ()
     assert best.structure.values["inertia.motor"] == pytest.approx(j, rel=0.05)
     assert best.structure.values["coulomb_friction.fc"] == pytest.approx(fc, rel=0.05)
+
+
+def test_the_lab_arms_recordings_keep_the_catalogues_orders():
+    """Chirp, multisine and the closed-loop lab program all round to the catalogue's decade:
+    on the arm the catalogue is scaled by exactly 1, and a drive 5 decades away is not."""
+    from types import SimpleNamespace
+
+    import mjjoint
+    from mjjoint.benchmark.cases import NOMINAL
+    from mjjoint.benchmark.recorder import record
+    recs = [mjjoint.simulate(ex.sample(1000, 5)) for ex in (mjjoint.Chirp(), mjjoint.Multisine())]
+    recs.append(SimpleNamespace(**record(NOMINAL, JointParams())))
+    for rec in recs:
+        assert estimate(Measured.from_recording(rec, 160.0)).scales == {"force": 1.0, "speed": 1.0, "position": 1.0}
+    large = estimate(Measured.from_recording(servo_recording(LARGE), 1.0, output=False))
+    assert large.scales["force"] >= 1e3
