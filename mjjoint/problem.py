@@ -14,11 +14,14 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from .assets import ArmSpec, DriveSpec
 from .assets.joint_view import single_joint_models
 from .assets.serial_file import SerialArmFile, read_model_file
 from .identify.effects import SEED_EFFECTS, check_effects, plant_effects
 from .identify.from_model import structure_from_model
+from .identify.initial import estimate
 from .identify.structure import Structure
 from .identify.windows import Measured, Predictor, WindowDesign
 from .modelfile import ModelFile
@@ -54,7 +57,9 @@ class Inputs:
     A value per joint (``gear_ratio``, ``k_m``) is one number for every joint or a tuple of one
     per joint of a multi-joint recording. ``base``: effect names (``()``: the minimal model;
     ``None``: the seed paper's full joint) or, instead, ``model`` (a model file or its path).
-    ``columns``, ``scales`` and ``allow_gaps`` apply when the recording is a path.
+    ``columns``, ``scales`` and ``allow_gaps`` apply when the recording is a path. Every plant
+    starts from initial values and ranges estimated from the recording (``identify.initial``);
+    a model file's values are the user's and stay.
     """
 
     gear_ratio: float | tuple[float, ...] | None = None
@@ -67,6 +72,7 @@ class Inputs:
     columns: Mapping[str, str] | None = None
     scales: Mapping[str, float] | None = None
     allow_gaps: bool = False
+    fit_signals: tuple[str, ...] | None = None  # the signals the cost scores (q, delta, tau); None: all recorded
 
 
 def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[Recording | str | Path],
@@ -114,8 +120,36 @@ def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[R
     recs = [_read(r, inputs, base.gear_ratio, inputs.k_m) for r in _each(recording)]
     if len(recs) == 1 and not isinstance(recs[0], Recording):
         return _joint_problems(recording, inputs, model, say, recs[0])
-    predictor = Predictor(_stacked(recording, recs, base.gear_ratio, notes), inputs.design)
-    return Problem(_source(recording), predictor, base, notes)
+    measured = _stacked(recording, recs, base.gear_ratio, notes)
+    predictor = make_predictor(measured, inputs, say)
+    return Problem(_source(recording), predictor, _started(base, measured, model is not None), notes)
+
+
+def _started(base: Structure, measured: Measured, from_model: bool) -> Structure:
+    """``base`` with ranges and initial values from the recording (``identify.initial``); a
+    model file's values are the user's and stay."""
+    start = estimate(measured, base.nominal.link_inertia)
+    return base.started(start, keep=tuple(base.values) if from_model else ())
+
+
+def make_predictor(measured: Measured, inputs: Inputs, say=str) -> Predictor:
+    """The windowed predictor scoring ``inputs.fit_signals``, each one recorded (``say``: an
+    input's name in messages)."""
+    signals = inputs.fit_signals
+    missing = [s for s in signals or () if getattr(measured, s) is None]
+    if missing:
+        raise ValueError(f"{say('fit_signals')}: the recording has no {missing[0]} (for this plant)")
+    return Predictor(measured, inputs.design, fit_signals=signals)
+
+
+def drive_structure(effects, joint_type: str, measured: Measured) -> Structure:
+    """A direct drive's starting structure, its size from the recording (``identify.initial``),
+    not from the shipped (EMPS) DriveSpec."""
+    start = estimate(measured)
+    # The recorded force is what was applied: the amplifier's limit must not clip it.
+    limit = max(DriveSpec.ctrl_limit, 1.01 * float(np.max(np.abs(measured.u))) / DriveSpec.k_m)
+    nominal = DriveSpec(joint_type=joint_type, ctrl_limit=limit, v_eps=start.v_eps(DriveSpec.timestep, DriveSpec.v_eps))
+    return Structure.create(effects, nominal, 1.0, start=start)
 
 
 def _each(recording) -> list:
@@ -184,15 +218,14 @@ def _drive_problem(recording, inputs: Inputs, say) -> Problem:
     if inputs.model is not None:
         raise ValueError(f"{say('plant')} {inputs.plant}: a direct drive starts from {say('base')}, "
                          f"not a {say('model')} file")
-    nominal = DriveSpec(joint_type=PLANTS[inputs.plant])
-    effects = () if inputs.base is None else _effects(inputs.base, say, plant_effects(nominal))
-    base = Structure.create(effects, nominal, 1.0)
+    effects = () if inputs.base is None else _effects(inputs.base, say, plant_effects(DriveSpec()))
     recs = [_read(r, inputs, 1.0, inputs.k_m) for r in _each(recording)]
     if not all(isinstance(rec, Recording) for rec in recs):
         raise ValueError(f"{say('plant')} {inputs.plant} takes single-joint recordings")
     notes: list[str] = []
-    predictor = Predictor(_stacked(recording, recs, 1.0, notes, output=False), inputs.design)
-    return Problem(_source(recording), predictor, base, notes)
+    measured = _stacked(recording, recs, 1.0, notes, output=False)
+    base = drive_structure(effects, PLANTS[inputs.plant], measured)
+    return Problem(_source(recording), make_predictor(measured, inputs, say), base, notes)
 
 
 # ---- multi-joint recordings ----------------------------------------------------------------
@@ -238,10 +271,11 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
     for j in joints:
         base = bases[j - 1]
         try:
-            predictor = Predictor(Measured.from_recording(rec.joint(j), base.gear_ratio), inputs.design)
+            measured = Measured.from_recording(rec.joint(j), base.gear_ratio)
+            predictor = make_predictor(measured, inputs, say)
         except ValueError as exc:
             raise ValueError(f"joint {j}: {exc}") from None
-        problems[j] = Problem(f"{source} joint {j}", predictor, base, [])
+        problems[j] = Problem(f"{source} joint {j}", predictor, _started(base, measured, model is not None), [])
     return JointProblems(source, problems, [f"joint {j}: {m}" for j, m in notes if j in joints])
 
 

@@ -14,6 +14,7 @@ from .errors import CliError
 from .options import Problem, add_problem_options, prepare, run_info
 
 DEFAULT_OUT = Path("out/fit")
+RESTARTS = 2  # fit --restarts default
 
 EPILOG = """\
 examples:
@@ -44,6 +45,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_problem_options(p, DEFAULT_OUT)
     p.add_argument("--max-iter", type=int, default=25, metavar="K", help="Levenberg-Marquardt iterations (default 25)")
+    p.add_argument("--restarts", type=int, default=RESTARTS, metavar="K",
+                   help="starting points tried when the fit ends on a bound or far above the noise floor: "
+                        f"the recording's initial values, then seeded random ones (default {RESTARTS}; 0: none)")
     p.set_defaults(handler=run)
 
 
@@ -53,13 +57,16 @@ def run(args: argparse.Namespace) -> int:
 
     if args.max_iter < 1:
         raise CliError(f"--max-iter {args.max_iter} must be at least 1")
+    if args.restarts < 0:
+        raise CliError(f"--restarts {args.restarts} must be at least 0")
     out, problem = prepare(args)
     if not isinstance(problem, Problem):
         from .per_joint import fit_joints
         return fit_joints(args, out, problem)
     start = time.perf_counter()
     with FitProgress(args.max_iter) as progress:
-        result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress)
+        result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress,
+                     restarts=args.restarts)
     seconds = time.perf_counter() - start
 
     from ..report.build import write_fit
@@ -70,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
         write_fit(folder, problem.predictor, result, problem.base, problem.source, run)
     st = result.structure
     print(f"fitted {', '.join(st.effects) or 'the minimal model'} to {problem.source} "
-          f"({result.iterations} iterations, {result.rollouts:.0f} full-length rollouts, {seconds:.1f} s)")
+          f"({result.iterations} iterations, {result.rollouts:.0f} full-length rollouts, {seconds:.1f} s, "
+          f"best of {result.starts} start{'s' if result.starts > 1 else ''})")
     print(parameter_table(st.values, result.intervals, result.warnings, st.describe()["units"]))
     print("held-out NRMSE per signal:")
     print("\n".join(nrmse_lines(result.nrmse_test)))

@@ -21,7 +21,8 @@ from .errors import CliError
 MINIMAL = "minimal"
 # How the problem's inputs are spelled on the command line, for its messages.
 NAMES = {"gear_ratio": "--gear-ratio", "k_m": "--k-m", "base": "--base", "model": "--model", "plant": "--plant",
-         "joints": "--joint"}
+         "joints": "--joint", "fit_signals": "--fit-signals"}
+FIT_SIGNALS = {"q": "q", "theta": "delta", "tau": "tau"}  # --fit-signals name -> the cost's signal
 
 
 def numbers(text: str) -> float | tuple[float, ...]:
@@ -78,6 +79,9 @@ def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
                    help="longest simulated lead-in of a window that starts at rest, for 2SEP's "
                         f"states (default {WindowDesign.lead:g} s; 0: none)")
     w.add_argument("--seed", type=int, default=0, metavar="S", help="which windows are held out (default 0)")
+    w.add_argument("--fit-signals", metavar="LIST",
+                   help="signals the cost scores, a comma list among q, theta (as the deflection q/N - theta), "
+                        "tau (default: every one recorded)")
     p.add_argument("--out", type=Path, default=default_out, metavar="DIR",
                    help=f"output folder (default {default_out}; {DESTINATION_RULE})")
 
@@ -113,7 +117,18 @@ def inputs_from_args(args: argparse.Namespace) -> Inputs:
                   plant=args.plant, joints=args.joint,
                   design=WindowDesign(length=args.window_length, seed=args.seed, lead=args.lead_in),
                   columns=None if args.columns is None else parse_column_map(args.columns),
-                  scales=None if args.scales is None else parse_scales(args.scales), allow_gaps=args.allow_gaps)
+                  scales=None if args.scales is None else parse_scales(args.scales), allow_gaps=args.allow_gaps,
+                  fit_signals=fit_signals(args.fit_signals))
+
+
+def fit_signals(text: str | None) -> tuple[str, ...] | None:
+    """--fit-signals: a comma list among q, theta (scored as the deflection q/N - theta), tau."""
+    if text is None:
+        return None
+    names = tuple(dict.fromkeys(n.strip() for n in text.split(",") if n.strip()))
+    if not names or any(n not in FIT_SIGNALS for n in names):
+        raise CliError(f"--fit-signals {text!r}: choose among {', '.join(FIT_SIGNALS)}")
+    return tuple(dict.fromkeys(FIT_SIGNALS[n] for n in names))
 
 
 def run_info(command: str, args: argparse.Namespace, problem: Problem) -> dict:

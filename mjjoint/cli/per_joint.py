@@ -35,7 +35,8 @@ def fit_joints(args: argparse.Namespace, out, jp: JointProblems) -> int:
     for j, problem in jp.problems.items():
         start = time.perf_counter()
         with FitProgress(args.max_iter, desc=f"fit joint {j}") as progress:
-            result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress)
+            result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress,
+                         restarts=args.restarts)
         results[j] = (result, time.perf_counter() - start)
     with out.staged() as folder:
         data = _write_each(folder, "fit", args, jp, results,

@@ -61,7 +61,7 @@ from typing import Callable
 import numpy as np
 from scipy.stats import wilcoxon
 
-from ..identify.effects import EFFECTS, base_params, plant_effects
+from ..identify.effects import EFFECTS, SENSOR_EFFECTS, base_params, plant_effects
 from ..identify.fit import FitResult, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
@@ -242,7 +242,7 @@ def screened_params(effect: str, structure: Structure) -> list[str]:
 
 def candidates_for(structure: Structure, allowed=None) -> list[str]:
     possible = plant_effects(structure.nominal)
-    names = possible if allowed is None else [e for e in allowed if e in possible]
+    names = [e for e in possible if e not in SENSOR_EFFECTS] if allowed is None else [e for e in allowed if e in possible]
     return [e for e in names if e not in structure.effects
             and all(r in structure.effects for r in EFFECTS[e].requires)]
 

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
+import numpy as np
 from ..assets import ArmSpec
 from ..assets.drive import DriveSpec, drive_joint
 from ..joint import JointParams
@@ -43,9 +44,10 @@ class Param:
     def from_unit(self, x: float) -> float:
         return math.exp(min(x, 700.0)) if self.log else x  # an infinite interval stays finite
 
-    def for_plant(self, plant) -> "Param":
-        """This parameter for a plant of other force/speed/position orders and units."""
-        s = plant.scales
+    def for_plant(self, plant, scales: dict[str, float] | None = None) -> "Param":
+        """This parameter for a plant of other force/speed/position orders (``scales``, by
+        default the plant's own) and units."""
+        s = plant.scales if scales is None else scales
         f = DIMENSIONS[self.dim](s["force"], s["speed"], s["position"])
         unit = plant.unit(self.unit)
         if f == 1.0 and unit == self.unit:
@@ -76,7 +78,10 @@ class Effect:
     apply: Callable[[Model, dict[str, float]], Model]
     requires: tuple[str, ...] = ()
     excludes: tuple[str, ...] = ()
-    site: str = "motor"    # where it acts: "motor" (torque on the rotor), "gear" or "link"
+    site: str = "motor"    # where it acts: "motor" (torque on the rotor), "gear", "link" or "sensor"
+    # A sensor effect changes what is measured, not the physics: it maps the predicted signals
+    # (windows x samples arrays by name), given the values and the sample rate.
+    measure: Callable[[dict, dict[str, float], float], dict] | None = None
 
 
 def _friction(model: Model) -> StaticFriction | TwoSEP:
@@ -129,6 +134,24 @@ def _ripple(model: Model, v: dict[str, float]) -> Model:
     a, b = v["torque_ripple.a"], v["torque_ripple.b"]
     r = TorqueRipple(amplitude=math.hypot(a, b), harmonic=v["torque_ripple.harmonic"], phase=math.atan2(b, a))
     return model[0], dataclasses.replace(model[1], ripple=r)
+
+
+def _skewed(pred: dict, v: dict[str, float], rate: float) -> dict:
+    """The link angle as an encoder read ``lag`` late sees it, theta(t - lag), and the deflection
+    from it (held at the window's first sample before it, inside the warmup)."""
+    theta = shift_late(pred["theta"], v["sensor_skew.lag"] * rate)
+    # delta = q / N - theta: the motor side is read on time.
+    return {**pred, "theta": theta, "delta": pred["delta"] + pred["theta"] - theta}
+
+
+def shift_late(x: np.ndarray, samples: float) -> np.ndarray:
+    """Rows of x read ``samples`` (fractional, either sign) late, linearly interpolated, the
+    ends held."""
+    n = x.shape[-1]
+    at = np.clip(np.arange(n) - samples, 0.0, n - 1.0)
+    i = np.minimum(np.floor(at).astype(int), n - 2)
+    f = at - i
+    return x[..., i] * (1.0 - f) + x[..., i + 1] * f
 
 
 def _arm(model: Model, **changes) -> Model:
@@ -200,7 +223,22 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("input_offset", "constant bias of the applied motor torque (amplifier or sensor offset)",
            (Param("input_offset.offset", 0.0, -1.0, 1.0, log=False, unit="N m", dim="force"),),
            lambda m, v: _arm(m, input_offset=v["input_offset.offset"])),
+    Effect("sensor_skew", "the link encoder read late against the motor encoder and input (time skew)",
+           (Param("sensor_skew.lag", 0.0, -0.01, 0.01, log=False, unit="s"),),
+           lambda m, v: m, site="sensor", measure=_skewed),
+    # Gain before offset (effects apply in catalogue order): tau_measured = gain tau + offset.
+    Effect("torque_gain", "gain error of the torque sensor (measured tau only)",
+           (Param("torque_gain.gain", 1.0, 0.2, 5.0, unit=""),),
+           lambda m, v: m, site="sensor", measure=lambda p, v, rate: {**p, "tau": p["tau"] * v["torque_gain.gain"]}),
+    Effect("torque_offset", "constant bias of the torque sensor (measured tau only)",
+           (Param("torque_offset.offset", 0.0, -100.0, 100.0, log=False, unit="N m"),),
+           lambda m, v: m, site="sensor",
+           measure=lambda p, v, rate: {**p, "tau": p["tau"] + v["torque_offset.offset"]}),
 )}
+
+# Effects on what the sensors report: the diagnosis considers them only when asked
+# (``--candidates``), since a sensor's gain or skew can stand in for physics.
+SENSOR_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.site == "sensor")
 
 # The effects a direct drive can have: no gear, no output side, no gravity on a level axis.
 # Torque ripple is left out because its harmonics are per motor revolution, which a linear

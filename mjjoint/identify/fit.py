@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from mujoco import minimize
 
-from .intervals import EIG_FLOOR, intervals, residual_variance
+from .intervals import EIG_FLOOR, intervals, near_bound, residual_variance
 from .structure import Structure
 from .windows import Predictor
 
@@ -79,6 +79,11 @@ EPS = np.finfo(np.float64).eps ** 0.5  # mujoco.minimize's own finite-difference
 # twofold, at most SCALE_ROUNDS runs (a fit from a poor start would otherwise end near least
 # squares: drive with three corrupted windows, tests/test_robust_cost.py).
 SCALE_ROUNDS = 3
+# Restarts (``fit(restarts=...)``): a fit whose training cost is this many times the noise
+# floor has not explained the data (a fit of the right structure ends within a few times it);
+# random starts spread this many decades (normal std) around the initial values.
+FAR_ABOVE = 100.0
+RESTART_DECADES = 1.0
 
 
 @dataclass
@@ -94,13 +99,16 @@ class FitResult:
     rollouts: float = 0.0
     seconds: float = 0.0
     coarse_iterations: int = 0  # of ``iterations``, those on the window subset (COARSE_SHARE)
+    on_bound: tuple[str, ...] = ()  # fitted parameters on a bound (intervals.near_bound): stand-ins
+    starts: int = 1  # fits run from different starting points (``restarts``), the best kept
 
     def as_dict(self) -> dict:
         return {"structure": self.structure.describe(), "cost_train": self.cost_train,
                 "cost_test": self.cost_test, "nrmse_train": self.nrmse_train, "nrmse_test": self.nrmse_test,
                 "intervals_95": {k: list(v) for k, v in self.intervals.items()}, "warnings": self.warnings,
                 "iterations": self.iterations, "coarse_iterations": self.coarse_iterations,
-                "rollouts": self.rollouts, "seconds": self.seconds}
+                "rollouts": self.rollouts, "seconds": self.seconds, "on_bound": list(self.on_bound),
+                "starts": self.starts}
 
 
 def residual_matrix(pred_fn, structure: Structure, names, windows, predictor: Predictor, seen: dict | None = None,
@@ -263,9 +271,51 @@ def _lm(obj: Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndar
 
 
 def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int = 25,
-        windows: np.ndarray | None = None, progress=None, robust: bool = False) -> FitResult:
+        windows: np.ndarray | None = None, progress=None, robust: bool = False, restarts: int = 0) -> FitResult:
     """Least-squares fit of the parameters ``names`` (default: all) of ``structure``; with
     ``robust``, under the Cauchy loss over windows (module doc).
+
+    With ``restarts`` > 0, a fit that ends with a parameter on a bound or with a training cost
+    above FAR_ABOVE times the noise floor (``Predictor.noise_floor``) is run again from
+    ``restart_points`` (the recording's initial values, then seeded random starts) and the
+    lowest training cost is kept.
+    """
+    result = _fit_once(predictor, structure, names, max_iter, windows, progress, robust)
+    if restarts <= 0 or not (result.on_bound or result.cost_train > FAR_ABOVE * predictor.noise_floor):
+        return result
+    tried = [result]
+    for start in restart_points(structure, names, restarts, predictor.design.seed):
+        tried.append(_fit_once(predictor, start, names, max_iter, windows, progress, robust))
+    best = min(tried, key=lambda r: r.cost_train)
+    best.starts = len(tried)
+    best.seconds = sum(r.seconds for r in tried)
+    best.rollouts = sum(r.rollouts for r in tried)
+    return best
+
+
+def restart_points(structure: Structure, names, count: int, seed: int) -> list[Structure]:
+    """``count`` starting points: the parameters' initial values (the recording's estimates
+    where the structure has them) unless the structure starts there already, then seeded draws
+    around them, RESTART_DECADES (normal std) in log coordinates, uniform over the range for
+    linear ones, clipped to the bounds."""
+    params = [p for p in structure.params if names is None or p.name in names]
+    initial = structure.with_values({p.name: p.initial for p in params})
+    points = [] if np.array_equal(initial.vector(names), structure.vector(names)) else [initial]
+    rng = np.random.default_rng([seed, count])
+    while len(points) < count:
+        values = {}
+        for p in params:
+            if p.log:
+                values[p.name] = float(np.clip(p.initial * 10.0 ** rng.normal(0.0, RESTART_DECADES), p.lo, p.hi))
+            else:
+                values[p.name] = float(rng.uniform(p.lo, p.hi))
+        points.append(structure.with_values(values))
+    return points
+
+
+def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, windows, progress,
+              robust: bool) -> FitResult:
+    """One fit from the structure's values (``fit``).
 
     Two LM phases: on a seeded quarter of the windows until the step is within COARSE_SE of
     that subset's standard errors, then on all windows until it is within STEP_SE of theirs
@@ -309,7 +359,8 @@ def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int
     ctr, cte, ntr, nte = evaluate(predictor, best, obj.prediction(x) if same else None)
     return FitResult(best, ctr, cte, ntr, nte, spans, warnings, iterations=done,
                      rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start,
-                     coarse_iterations=coarse_done)
+                     coarse_iterations=coarse_done,
+                     on_bound=tuple(n for n, b in zip(names, near_bound(x, lo, hi)) if b))
 
 
 def _reporter(progress, done: int):

@@ -27,6 +27,9 @@ import numpy as np
 # Eigenvalues of J^T J below this share of the largest are taken as unidentifiable directions,
 # by the intervals and by the fit's step rule alike.
 EIG_FLOOR = 1e-14
+# A parameter within this share of its range (in the optimiser's coordinate) from a bound sits
+# on it: what it stands for lies at or beyond the bound, its value is a stand-in.
+BOUND_SHARE = 1e-3
 
 
 def residual_variance(r: np.ndarray, nparams: int) -> float:
@@ -61,6 +64,12 @@ def window_jackknife_variances(jac_blocks: np.ndarray, r_blocks: np.ndarray) -> 
     return (g - 1) / g * np.sum(d ** 2, axis=0)
 
 
+def near_bound(x, lo, hi):
+    """Whether x (the optimiser's coordinate) is within BOUND_SHARE of its range from a bound."""
+    margin = BOUND_SHARE * (np.asarray(hi) - np.asarray(lo))
+    return (np.asarray(x) <= lo + margin) | (np.asarray(x) >= hi - margin)
+
+
 def intervals(jac, r, x, lo, hi, names, structure, jac_blocks, r_blocks):
     """95 % intervals in physical units from the Jacobian at the optimum, and warnings.
 
@@ -78,7 +87,7 @@ def intervals(jac, r, x, lo, hi, names, structure, jac_blocks, r_blocks):
         a, b = p.from_unit(x[j] - half[j]), p.from_unit(x[j] + half[j])
         out[name] = (min(a, b), max(a, b))
         value = p.from_unit(x[j])
-        at_bound = x[j] <= lo[j] + 1e-9 or x[j] >= hi[j] - 1e-9
+        at_bound = near_bound(x[j], lo[j], hi[j])
         wide = (half[j] > np.log(2.0)) if p.log else (half[j] > max(abs(value), 1e-12))
         if at_bound:
             warnings.append(f"{name} = {value:.4g} sits on its bound [{p.lo:g}, {p.hi:g}]")

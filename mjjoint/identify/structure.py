@@ -10,6 +10,7 @@ import numpy as np
 from ..assets import load_model
 from ..assets.drive import DriveSpec
 from ..assets.plant import build_plant
+from .initial import Estimate
 from .effects import EFFECTS, Model, Param, Plant, base_params, check_effects, minimal_model, plant_effects
 
 
@@ -26,30 +27,42 @@ class Structure:
     nominal: Plant
     gear_ratio: float
     settings: dict[str, float] = field(default_factory=dict)
+    # The recording's orders and estimates (``initial.Estimate``): every parameter's initial
+    # value and bounds come from them; None: the catalogue's, scaled by the plant's ``scales``.
+    start: Estimate | None = None
 
     @classmethod
-    def create(cls, effects, nominal: Plant, gear_ratio: float, values=None, settings=None) -> "Structure":
+    def create(cls, effects, nominal: Plant, gear_ratio: float, values=None, settings=None,
+               start: Estimate | None = None) -> "Structure":
         effects = check_effects(effects, plant_effects(nominal))
-        vals = {p.name: p.initial for p in _params(effects, nominal)}
-        vals["inertia.motor"] = nominal.motor_inertia
+        vals = {p.name: p.initial for p in _params(effects, nominal, start)}
+        estimated = {} if start is None else start.values
+        nominal_values = {"inertia.motor": nominal.motor_inertia}
         if "inertia.link" in vals:
-            vals["inertia.link"] = nominal.hub_inertia
+            nominal_values["inertia.link"] = nominal.hub_inertia
         if "mass.tip" in vals:
-            vals["mass.tip"] = nominal.tip_mass
+            nominal_values["mass.tip"] = nominal.tip_mass
+        vals.update({k: v for k, v in nominal_values.items() if k not in estimated})
         vals.update(values or {})
-        return cls(effects, vals, nominal, float(gear_ratio), dict(settings or {}))
+        return cls(effects, vals, nominal, float(gear_ratio), dict(settings or {}), start)
 
     @property
     def params(self) -> tuple[Param, ...]:
-        return _params(self.effects, self.nominal)
+        return _params(self.effects, self.nominal, self.start)
 
     def with_effect(self, name: str, values=None, settings=None) -> "Structure":
         vals = dict(self.values)
         effects = check_effects(self.effects + (name,), plant_effects(self.nominal))
-        vals.update({p.name: p.initial for p in _params(effects, self.nominal) if p.name not in vals})
+        vals.update({p.name: p.initial for p in _params(effects, self.nominal, self.start) if p.name not in vals})
         vals.update(values or {})
         return dataclasses.replace(self, effects=effects, values=vals,
                                    settings={**self.settings, **(settings or {})})
+
+    def started(self, start: Estimate, keep=()) -> "Structure":
+        """This structure with initial values and bounds from a recording's ``start``; the
+        values named in ``keep`` (given by the user) stay as they are."""
+        return Structure.create(self.effects, self.nominal, self.gear_ratio, {k: self.values[k] for k in keep},
+                                self.settings, start)
 
     def with_values(self, values: dict[str, float]) -> "Structure":
         return dataclasses.replace(self, values={**self.values, **values})
@@ -92,6 +105,19 @@ class Structure:
             model = EFFECTS[name].apply(model, v)
         return model
 
+    def measured(self, pred: dict, rate: float) -> dict:
+        """Predicted signals as this structure's sensors report them (sensor effects)."""
+        v = {**self.values, **self.settings}
+        for name in self.effects:
+            if EFFECTS[name].measure is not None:
+                pred = EFFECTS[name].measure(pred, v, rate)
+        return pred
+
+    @property
+    def skew(self) -> float:
+        """[s] how late the link encoder reads (``sensor_skew``; 0 without it)."""
+        return self.values.get("sensor_skew.lag", 0.0) if "sensor_skew" in self.effects else 0.0
+
     def compile(self) -> mujoco.MjModel:
         return load_model(build_plant(*self.model_params()))
 
@@ -102,7 +128,9 @@ class Structure:
                 "units": {p.name: p.unit for p in self.params}}
 
 
-def _params(effects, nominal: Plant) -> tuple[Param, ...]:
+def _params(effects, nominal: Plant, start: Estimate | None = None) -> tuple[Param, ...]:
     params = base_params(nominal) + tuple(p for e in effects for p in EFFECTS[e].params)
-    return tuple(p.for_plant(nominal) for p in params)
+    if start is None:
+        return tuple(p.for_plant(nominal) for p in params)
+    return tuple(start.param(p.for_plant(nominal, start.scales)) for p in params)
 

@@ -138,16 +138,8 @@ class Measured:
 
     @cached_property
     def q_noise(self) -> float:
-        """Measurement noise (std) of q: robust spread of q about its Savitzky-Golay smoothing.
-
-        The median absolute deviation ignores the few samples where the smoothing misses fast
-        motion; the factor undoes the share of the noise the smoothing itself follows. On a
-        15-bit resolver it returns the quantisation step / sqrt(12) within 10 %.
-        """
-        win = _sg_window(1.0 / self.rate)
-        r = self.q - self.per_segment(lambda x: savgol_filter(x, win, VELOCITY_ORDER), self.q)
-        follow = savgol_coeffs(win, VELOCITY_ORDER)[win // 2]
-        return float(1.4826 * np.median(np.abs(r - np.median(r))) / np.sqrt(1.0 - follow))
+        """Measurement noise (std) of q (``noise_std``), each stacked recording smoothed on its own."""
+        return noise_std(self.q, self.rate, self.per_segment)
 
     @cached_property
     def q_path(self) -> np.ndarray:
@@ -191,6 +183,21 @@ class Measured:
         return cls(t=first.t[0] + np.arange(offsets[-1]) / first.rate, u=cat("u"), q=cat("q"), theta=cat("theta"),
                    tau=cat("tau"), qd=cat("qd"), thetad=cat("thetad"), gear_ratio=first.gear_ratio,
                    rate=first.rate, joins=joins)
+
+
+def noise_std(x: np.ndarray, rate: float, per_segment=None) -> float:
+    """Measurement noise (std) of a signal: robust spread of x about its Savitzky-Golay smoothing.
+
+    The median absolute deviation ignores the few samples where the smoothing misses fast
+    motion; the factor undoes the share of the noise the smoothing itself follows. On a
+    15-bit resolver it returns the quantisation step / sqrt(12) within 10 %. ``per_segment``
+    (``Measured.per_segment``): smooth each stacked recording on its own.
+    """
+    win = _sg_window(1.0 / rate)
+    smooth = lambda y: savgol_filter(y, win, VELOCITY_ORDER)  # noqa: E731
+    r = x - (smooth(x) if per_segment is None else per_segment(smooth, x))
+    follow = savgol_coeffs(win, VELOCITY_ORDER)[win // 2]
+    return float(1.4826 * np.median(np.abs(r - np.median(r))) / np.sqrt(1.0 - follow))
 
 
 def _play(x: np.ndarray, eps: float) -> np.ndarray:
@@ -253,9 +260,16 @@ def _sg_window(dt: float) -> int:
 class Predictor:
     """Windowed predictions of one recording for any number of model structures."""
 
-    def __init__(self, measured: Measured, design: WindowDesign = WindowDesign(), nthread: int | None = None):
+    def __init__(self, measured: Measured, design: WindowDesign = WindowDesign(), nthread: int | None = None,
+                 fit_signals: tuple[str, ...] | None = None):
+        """``fit_signals``: the measured signals the cost scores (default all of SIGNALS the
+        recording has); NRMSE still reports every one."""
+        unknown = sorted(set(fit_signals or ()) - set(SIGNALS))
+        if unknown:
+            raise ValueError(f"fit_signals: {unknown[0]!r} is not allowed (allowed: {', '.join(SIGNALS)})")
         self.m = measured
         self.design = design
+        self.fit_signals = fit_signals
         n = int(round(design.length * measured.rate))
         self.nwin_samples = n
         w0 = int(round(design.warmup * measured.rate))
@@ -296,7 +310,8 @@ class Predictor:
 
     @property
     def signals(self) -> tuple[str, ...]:
-        return tuple(s for s in SIGNALS if self.meas.get(s) is not None)
+        return tuple(s for s in SIGNALS if self.meas.get(s) is not None
+                     and (self.fit_signals is None or s in self.fit_signals))
 
     # ---- prediction --------------------------------------------------------------------
     def predict(self, structures: list[Structure], windows: np.ndarray | None = None) -> list[dict[str, np.ndarray]]:
@@ -309,10 +324,11 @@ class Predictor:
             done = iter(self.predict(good, windows) if good else [])
             nan = np.full((len(windows), self.nwin_samples), np.nan)
             return [next(done) if ok else {k: nan for k in ("q", "theta", "delta", "tau")} for ok in stable]
-        models, delays = [], []
+        models, delays, skews = [], [], []
         for s in structures:
             arm, joint = s.model_params()
             delays.append(arm.input_delay)
+            skews.append(s.skew)
             models.append(_compile(arm, joint))
         sig = {_signature(m) for m in models}
         if len(sig) > 1:
@@ -321,7 +337,8 @@ class Predictor:
             register_model(mod)  # a memoised model's registry row may have been recycled
         jis = [joint_indices(mod)[0] for mod in models]  # parsed once per model and call
         i0 = self.starts[windows]
-        x0 = np.concatenate([self._start_states(mod, ji, d, windows) for mod, d, ji in zip(models, delays, jis)])
+        x0 = np.concatenate([self._start_states(mod, ji, d, windows, k)
+                             for mod, d, ji, k in zip(models, delays, jis, skews)])
         ctrl = np.concatenate([self._controls(mod, i0, self.nwin_samples, d, ji)
                                for mod, d, ji in zip(models, delays, jis)])
         batch_models = [mod for mod in models for _ in windows]
@@ -334,7 +351,8 @@ class Predictor:
                 picked = state[lo - a:hi - a, sub - 1::sub][:, : self.nwin_samples - 1]
                 parts[k].append(self._signals(models[k], np.concatenate([x0[lo:hi, None], picked], axis=1), jis[k]))
         self.rollouts += len(structures) * len(windows) / len(self.starts)
-        return [p[0] if len(p) == 1 else {s: np.concatenate([q[s] for q in p]) for s in p[0]} for p in parts]
+        preds = [p[0] if len(p) == 1 else {s: np.concatenate([q[s] for q in p]) for s in p[0]} for p in parts]
+        return [s.measured(p, self.m.rate) for s, p in zip(structures, preds)]
 
     def _rollouts(self, models: list, x0: np.ndarray, ctrl: np.ndarray):
         """Roll out rows (models, x0, ctrl) in chunks that fit ROLLOUT_BUFFER; yields (a, b,
@@ -371,8 +389,11 @@ class Predictor:
     def _substeps(self, model) -> int:
         return substeps(self.m.rate, model.opt.timestep, "the recording's rate")
 
-    def _initial_states(self, model, i0: np.ndarray, ji) -> np.ndarray:
-        """Full MuJoCo states at samples ``i0``: measured motion, internal states from the history."""
+    def _initial_states(self, model, i0: np.ndarray, ji, skew: float = 0.0) -> np.ndarray:
+        """Full MuJoCo states at samples ``i0``: measured motion, internal states from the history.
+
+        ``skew`` [s]: the link encoder reads that late, so the link's state at a start is the one
+        it reports ``skew`` later."""
         d = mujoco.MjData(model)
         mujoco.mj_resetData(model, d)
         template = np.empty(mujoco.mj_stateSize(model, FULL))
@@ -383,8 +404,10 @@ class Predictor:
         x0[:, 1 + ji.motor_qpos] = m.q[i0]
         x0[:, 1 + model.nq + ji.motor_dof] = m.qd[i0]
         if ji.link_qpos >= 0:
-            x0[:, 1 + ji.link_qpos] = m.theta[i0]
-            x0[:, 1 + model.nq + ji.link_dof] = m.thetad[i0]
+            at = np.clip(i0 + skew * m.rate, 0, len(m.t) - 1)
+            samples = np.arange(len(m.t))
+            x0[:, 1 + ji.link_qpos] = np.interp(at, samples, m.theta)
+            x0[:, 1 + model.nq + ji.link_dof] = np.interp(at, samples, m.thetad)
         # Flexible segments of the link move with the hub at the window start.
         delta = np.zeros(len(i0)) if m.delta is None else m.delta[i0]
         states = _steady_internal_states(ji.block, m.qd[i0], delta)
@@ -410,7 +433,7 @@ class Predictor:
         ji.plugin_states(x0)[:] = states
         return x0
 
-    def _start_states(self, model, ji, delay: float, windows: np.ndarray) -> np.ndarray:
+    def _start_states(self, model, ji, delay: float, windows: np.ndarray, skew: float = 0.0) -> np.ndarray:
         """Full MuJoCo states at the starts of ``windows``; for 2SEP, those that start at rest take
         2SEP's states from a lead-in.
 
@@ -427,7 +450,7 @@ class Predictor:
         rows = np.flatnonzero(lead > 0)
         lead = lead[rows]
         # One history run serves the window starts and the lead-ins' starts.
-        x = self._initial_states(model, np.concatenate([i0, i0[rows] - lead]), ji)
+        x = self._initial_states(model, np.concatenate([i0, i0[rows] - lead]), ji, skew)
         x0, first = x[:len(i0)], x[len(i0):]
         if rows.size == 0:
             return x0
@@ -503,6 +526,13 @@ class Predictor:
             err = pred[s][:, self.cols] - meas
             out[s] = float(np.sqrt(np.mean(err ** 2)) / max(np.sqrt(np.mean(spread ** 2)), 1e-300))
         return out
+
+    @cached_property
+    def noise_floor(self) -> float:
+        """The cost measurement noise alone gives: the mean over the scored signals of
+        (noise std / normalisation)^2 (``noise_std``)."""
+        full = {"q": self.m.q, "delta": self.m.delta, "tau": self.m.tau}
+        return float(np.mean([(noise_std(full[s], self.m.rate) / self.scale[s]) ** 2 for s in self.signals]))
 
     @property
     def train(self) -> np.ndarray:

@@ -1,0 +1,203 @@
+"""Nominal values and ranges of the identification, estimated from the recording itself.
+
+The effect catalogue (``effects``) gives every parameter an initial value and bounds in the
+lab arm's orders (motor torques ~0.1 N m, motor speeds ~10 rad/s). A small servo or a 300 kg
+robot axis lies decades away, and a fit started decades off or bounded short of the truth
+cannot reach it. ``estimate`` measures the recording's own orders and the parameters a few
+linear regressions give:
+
+* force and speed orders: robust amplitudes (AMPLITUDE_PERCENTILE) of u and of the smoothed
+  motor speed; the position order is what one second at that speed covers;
+* motor inertia, Coulomb and viscous friction, input offset: least squares of the motor's
+  equation u - tau/N = J a + Fc sgn(v) + d v - offset on the samples where the motor moves
+  clearly (|v| > MOVING_SHARE of the speed order), every signal through one zero-phase
+  low-pass (CUTOFF); a direct drive has no tau; a geared joint whose tau is not measured is taken as
+  rigid (inertia J_m + J_l/N^2, the nominal link's share taken off, and gravity columns);
+* gear stiffness: least squares of tau = k delta + D delta' + c with the deflection
+  delta = q/N - theta where tau is measured, else from a resonance of the input-to-deflection
+  response, k = J_red (2 pi f)^2 with the two sides' reduced inertia.
+
+``Estimate.param`` turns a catalogue parameter into the recording's: the catalogue values
+scaled by the decade of each order (``scales``; the lab arm's are all 1, so its fits start as
+before), and a directly estimated parameter started at its estimate with bounds DECADES either
+side. All values are in the recording's (SI) units.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import butter, csd, filtfilt, welch
+
+from .effects import Param
+
+# The orders the catalogue's values are set for: the lab arm's, the geometric middle of its
+# recordings' amplitudes (force [N m], speed [rad/s]: 0.16 and 46 for the 5 s default chirp,
+# 0.17 and 23 for the multisine, 0.49 and 99 for the closed-loop lab program), so that all of
+# them round to the catalogue's own decade; position: what one second at that speed covers,
+# as the drives' ``scales`` define it.
+CATALOGUE_ORDERS = {"force": 0.27, "speed": 47.0, "position": 47.0}
+AMPLITUDE_PERCENTILE = 95.0
+# Samples where |v| exceeds this share of the speed order enter the friction regression: there
+# the sign of v is certain and the friction is on its sliding branch.
+MOVING_SHARE = 0.1
+# Low-pass of the regressions' signals [Hz]: the acceleration is a second derivative of an
+# encoder angle; 50 Hz keeps a 20-bit encoder's steps at 1 kHz far below the motion.
+CUTOFF = 50.0
+# A directly estimated parameter may move this many decades either way in the fit.
+DECADES = 3.0
+# The regularised Coulomb slope's step c h the drive models are kept to: the shipped drive's
+# (linear_drive.xml: 0.21), ten times inside the explicit limit of 2.
+SLOPE_STEP = 0.2
+# A resonance counts as visible when the response's peak stands this far above its median, at
+# frequencies where the input's power is above EXCITED of its peak (elsewhere H is noise).
+PEAK_RATIO = 5.0
+EXCITED = 1e-3
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Orders and parameter estimates of one recording (SI units; None: not estimable)."""
+
+    force: float
+    speed: float
+    values: dict[str, float] = field(default_factory=dict)  # catalogue parameter name -> estimate
+    resonance: float | None = None  # [Hz] of the gear, where one is visible
+
+    @property
+    def position(self) -> float:
+        return self.speed * 1.0
+
+    @property
+    def scales(self) -> dict[str, float]:
+        """Each order relative to the catalogue's, rounded to its decade: the factor every
+        catalogue value of that dimension is scaled by (``Param.for_plant``)."""
+        amp = {"force": self.force, "speed": self.speed, "position": self.position}
+        return {k: 10.0 ** round(math.log10(amp[k] / CATALOGUE_ORDERS[k])) for k in CATALOGUE_ORDERS}
+
+    def v_eps(self, timestep: float, default: float) -> float:
+        """Friction sign regularisation [speed] for a model of this recording: ``default`` unless
+        the estimated Coulomb slope Fc / (v_eps J) would be stiffer than SLOPE_STEP / timestep
+        (a light motor with strong friction is explicitly unstable at the shipped drive's)."""
+        fc, j = self.values.get("coulomb_friction.fc"), self.values.get("inertia.motor")
+        if fc is None or j is None:
+            return default
+        return max(default, fc * timestep / (SLOPE_STEP * j))
+
+    def param(self, p: Param) -> Param:
+        """``p`` (already scaled) started at its estimate, bounds DECADES either side."""
+        v = self.values.get(p.name)
+        if v is None or not p.log or not v > 0:
+            if v is not None and not p.log:  # a signed parameter: its estimate inside the range
+                span = max(abs(p.lo), abs(p.hi), 2.0 * abs(v))
+                return dataclasses.replace(p, initial=v, lo=min(p.lo, -span), hi=max(p.hi, span))
+            return p
+        return dataclasses.replace(p, initial=v, lo=v * 10.0 ** -DECADES, hi=v * 10.0 ** DECADES)
+
+
+def amplitude(x: np.ndarray) -> float:
+    """Robust amplitude: the AMPLITUDE_PERCENTILE of |x - median x| (0 for a constant)."""
+    x = np.asarray(x, float)
+    return float(np.percentile(np.abs(x - np.median(x)), AMPLITUDE_PERCENTILE))
+
+
+def estimate(measured, link_inertia: float | None = None) -> Estimate:
+    """The recording's orders and regression estimates (module doc).
+
+    ``measured``: a ``windows.Measured`` (theta None for a direct drive). ``link_inertia``
+    [kg m^2]: the nominal output-side inertia, for the stiffness from a resonance.
+    """
+    m = measured
+    # One zero-phase low-pass for every signal, derivatives after it: the filter commutes with
+    # the linear terms of each regression, so they hold between the filtered signals exactly.
+    b, a_ = butter(4, CUTOFF * 2.0 / m.rate)
+    smooth = lambda x: filtfilt(b, a_, np.asarray(x, float))  # noqa: E731
+    rate = lambda x: np.gradient(x, 1.0 / m.rate)  # noqa: E731
+    v = rate(smooth(m.q))
+    a = rate(v)
+    guard = int(round(m.rate / CUTOFF))  # the low-pass's reach: one period of its cutoff
+    force = _positive(amplitude(m.u), 1.0)
+    speed = _positive(amplitude(v), 1.0)
+    values: dict[str, float] = {}
+    geared = m.theta is not None
+    resonance = None
+    if not geared:
+        values.update(_motor_regression(smooth(m.u), v, a, speed, guard))
+    elif m.tau is not None:
+        values.update(_motor_regression(smooth(m.u) - smooth(m.tau) / m.gear_ratio, v, a, speed, guard))
+        delta = smooth(m.delta)
+        values.update(_stiffness_regression(delta, rate(delta), smooth(m.tau)))
+    else:
+        # No gear torque: the rigid joint's equation, its inertia J_m + J_l / N^2, the link's
+        # gravity torque as two more columns (its zero angle unknown).
+        gravity = np.column_stack([np.sin(m.theta), np.cos(m.theta)])
+        values.update(_motor_regression(smooth(m.u), v, a, speed, guard, gravity))
+        j_rigid = values.pop("inertia.motor", None)
+        j_link = None if link_inertia is None else link_inertia / m.gear_ratio ** 2
+        if j_rigid is not None and j_link is not None and j_rigid > j_link:
+            values["inertia.motor"] = j_rigid - j_link
+        resonance = _resonance(m.u, m.delta, m.rate)
+        if resonance is not None and "inertia.motor" in values:
+            j_red = 1.0 / (1.0 / link_inertia + 1.0 / (values["inertia.motor"] * m.gear_ratio ** 2))
+            values["linear_stiffness.k1"] = j_red * (2.0 * math.pi * resonance) ** 2
+    return Estimate(force, speed, values, resonance)
+
+
+def _positive(x: float, fallback: float) -> float:
+    return x if x > 0 and math.isfinite(x) else fallback
+
+
+def _motor_regression(y: np.ndarray, v: np.ndarray, a: np.ndarray, speed: float, guard: int,
+                      extra: np.ndarray | None = None) -> dict[str, float]:
+    """J, Fc, d and the input offset from y = J a + Fc sgn(v) + d v + c (+ ``extra`` columns)
+    on the moving samples at least ``guard`` samples from a reversal (the low-pass smears the
+    friction's jump over that many); only physically meaningful (positive) magnitudes are
+    returned."""
+    moving = (np.abs(v) > MOVING_SHARE * speed) & ~near_reversal(v, guard)
+    if moving.sum() < 10:
+        return {}
+    cols = np.column_stack([a, np.sign(v), v, np.ones_like(v), *([] if extra is None else [extra])])[moving]
+    # Columns scaled to unit norm: J, Fc and d differ by decades.
+    norms = np.linalg.norm(cols, axis=0)
+    norms[norms == 0] = 1.0
+    coef = np.linalg.lstsq(cols / norms, y[moving], rcond=None)[0] / norms
+    j, fc, d, c = (float(x) for x in coef[:4])
+    out = {"input_offset.offset": -c}
+    for name, value in (("inertia.motor", j), ("coulomb_friction.fc", fc), ("viscous_friction.sigma", d)):
+        if value > 0:
+            out[name] = value
+    return out
+
+
+def near_reversal(v: np.ndarray, guard: int) -> np.ndarray:
+    """Samples within ``guard`` of a sign change of v."""
+    flips = np.flatnonzero(np.diff(np.sign(v)) != 0)
+    hit = np.zeros(len(v) + 1, int)
+    np.add.at(hit, np.clip(flips - guard, 0, len(v)), 1)
+    np.add.at(hit, np.clip(flips + guard + 2, 0, len(v)), -1)
+    return np.cumsum(hit)[:-1] > 0
+
+
+def _stiffness_regression(delta: np.ndarray, delta_rate: np.ndarray, tau: np.ndarray) -> dict[str, float]:
+    """k from tau = k delta + D delta' + c (least squares)."""
+    cols = np.column_stack([delta, delta_rate, np.ones_like(delta)])
+    norms = np.linalg.norm(cols, axis=0)
+    norms[norms == 0] = 1.0
+    k = float(np.linalg.lstsq(cols / norms, tau, rcond=None)[0][0] / norms[0])
+    return {"linear_stiffness.k1": k} if k > 0 else {}
+
+
+def _resonance(u: np.ndarray, delta: np.ndarray, rate: float) -> float | None:
+    """Frequency [Hz] of the peak of |H| = |P_u,delta / P_uu| where it stands PEAK_RATIO above
+    the response's median (between 1 Hz and a quarter of the rate, where u has power), else None."""
+    n = min(len(u), int(4 * rate))
+    f, puu = welch(u, fs=rate, nperseg=n)
+    _, pud = csd(u, delta, fs=rate, nperseg=n)
+    band = (f >= 1.0) & (f <= rate / 4) & (puu > puu.max() * EXCITED)
+    if band.sum() < 5:
+        return None
+    h = np.abs(pud[band]) / puu[band]
+    i = int(np.argmax(h))
+    return float(f[band][i]) if h[i] > PEAK_RATIO * np.median(h) else None

@@ -1,0 +1,104 @@
+"""Initial values and ranges from the recording: drives decades away from the shipped ones fit
+with no --scales, and the estimator recovers known parameters of noise-free recordings."""
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+from mjjoint.assets.drive import DriveSpec
+from mjjoint.experiments.servo import LARGE, SMALL, geared_recording, servo_recording
+from mjjoint.identify.initial import DECADES, estimate
+from mjjoint.identify.structure import Structure
+from mjjoint.identify.windows import Measured
+from mjjoint.joint import JointParams
+from mjjoint.recordings import write_recording
+
+
+@pytest.mark.parametrize("case", [SMALL, LARGE], ids=["small", "large"])
+def test_the_estimator_recovers_a_drives_inertia_and_friction(case):
+    j, fc, sigma = case.inertia, case.coulomb, case.viscous
+    e = estimate(Measured.from_recording(servo_recording(case), 1.0, output=False))
+    # Start values, for a fit that may move each DECADES either way: the inertia within 5 %,
+    # the friction levels (which the J a term dwarfs on the large drive) within half.
+    assert e.values["inertia.motor"] == pytest.approx(j, rel=0.05)
+    assert e.values["coulomb_friction.fc"] == pytest.approx(fc, rel=0.5)
+    assert e.values["viscous_friction.sigma"] == pytest.approx(sigma, rel=0.5)
+    # Every range is centred on its estimate, so the truth lies far inside.
+    s = Structure.create(("coulomb_friction", "viscous_friction"), DriveSpec(joint_type="hinge"), 1.0, start=e)
+    for p in s.params:
+        assert p.lo == pytest.approx(p.initial * 10 ** -DECADES) and p.hi == pytest.approx(p.initial * 10 ** DECADES)
+
+
+@pytest.mark.parametrize("case", [SMALL, LARGE], ids=["small", "large"])
+def test_fit_plant_rotary_recovers_motors_decades_apart_with_no_scales(case, tmp_path, capsys):
+    from mjjoint.cli import main
+    j, fc = case.inertia, case.coulomb
+    rec = tmp_path / "servo.csv"
+    write_recording(rec, servo_recording(case))
+    out = tmp_path / "fit"
+    assert main(["fit", str(rec), "--plant", "rotary", "--base", "coulomb_friction,viscous_friction",
+                 "--window-length", "0.5", "--max-iter", "15", "--out", str(out)]) == 0
+    fitted = json.loads((out / "fit.json").read_text())["structure"]["parameters"]
+    # Within 5 %: the fitted model's sign regularisation is set from the estimated Fc / J
+    # (Estimate.v_eps), the truth's from the true one.
+    assert fitted["inertia.motor"] == pytest.approx(j, rel=0.05)
+    assert fitted["coulomb_friction.fc"] == pytest.approx(fc, rel=0.05)
+    assert "kg m^2" in capsys.readouterr().out  # rotary units, SI
+
+
+@pytest.mark.parametrize("k1", [3e3, 3e4])
+def test_the_estimator_recovers_the_gear_stiffness_from_the_torque_and_the_resonance(k1):
+    measured, arm = geared_recording(k1)
+    e = estimate(measured, arm.link_inertia)
+    assert e.values["linear_stiffness.k1"] == pytest.approx(k1, rel=0.05)
+    assert e.values["inertia.motor"] == pytest.approx(arm.motor_inertia, rel=0.05)
+    assert e.values["coulomb_friction.fc"] == pytest.approx(0.05, rel=0.05)
+    assert e.values["viscous_friction.sigma"] == pytest.approx(2e-4, rel=0.25)
+    # Without the torque sensor: the resonance of the input-to-deflection response.
+    untorqued = dataclasses.replace(measured, tau=None)
+    e = estimate(untorqued, arm.link_inertia)
+    assert e.resonance is not None
+    assert e.values["linear_stiffness.k1"] == pytest.approx(k1, rel=0.25)
+
+
+def test_a_fit_started_off_ends_on_a_bound_and_restarts_recover_the_truth():
+    """J started a thousandfold low and Fc three hundredfold high: the single fit ends with
+    parameters on their bounds and says which; restarts from the recording's estimates reach
+    the truth, with nothing on a bound."""
+    from mjjoint.identify.fit import fit
+    from mjjoint.identify.windows import Predictor, WindowDesign
+    j, fc = SMALL.inertia, SMALL.coulomb
+    measured = Measured.from_recording(servo_recording(SMALL, duration=3.0), 1.0, output=False)
+    start = estimate(measured)
+    nominal = DriveSpec(joint_type="hinge", v_eps=start.v_eps(DriveSpec.timestep, DriveSpec.v_eps))
+    s = Structure.create(("coulomb_friction", "viscous_friction"), nominal, 1.0, start=start)
+    lo = {p.name: p.lo for p in s.params}
+    hi = {p.name: p.hi for p in s.params}
+    off = s.with_values({"inertia.motor": lo["inertia.motor"], "coulomb_friction.fc": hi["coulomb_friction.fc"],
+                         "viscous_friction.sigma": hi["viscous_friction.sigma"]})
+    pred = Predictor(measured, WindowDesign(length=0.25))
+    single = fit(pred, off, max_iter=10)
+    assert single.on_bound and single.as_dict()["on_bound"] == list(single.on_bound)
+    assert all(f"{n} = " in w and "bound" in w for n, w in zip(single.on_bound, single.warnings))
+    best = fit(pred, off, max_iter=10, restarts=2)
+    assert best.starts == 3 and best.on_bound == ()
+    assert best.structure.values["inertia.motor"] == pytest.approx(j, rel=0.05)
+    assert best.structure.values["coulomb_friction.fc"] == pytest.approx(fc, rel=0.05)
+
+
+def test_the_lab_arms_recordings_keep_the_catalogues_orders():
+    """Chirp, multisine and the closed-loop lab program all round to the catalogue's decade:
+    on the arm the catalogue is scaled by exactly 1, and a drive 5 decades away is not."""
+    from types import SimpleNamespace
+
+    import mjjoint
+    from mjjoint.benchmark.cases import NOMINAL
+    from mjjoint.benchmark.recorder import record
+    recs = [mjjoint.simulate(ex.sample(1000, 5)) for ex in (mjjoint.Chirp(), mjjoint.Multisine())]
+    recs.append(SimpleNamespace(**record(NOMINAL, JointParams())))
+    for rec in recs:
+        assert estimate(Measured.from_recording(rec, 160.0)).scales == {"force": 1.0, "speed": 1.0, "position": 1.0}
+    large = estimate(Measured.from_recording(servo_recording(LARGE), 1.0, output=False))
+    assert large.scales["force"] >= 1e3

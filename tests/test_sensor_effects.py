@@ -1,0 +1,49 @@
+"""Sensor effects: a link encoder read late (time skew) and a torque sensor's offset and gain
+change what is measured, not the physics; injected into a recording, the fit recovers them."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mjjoint
+from mjjoint.assets import ArmSpec
+from mjjoint.diagnosis.loop import candidates_for
+from mjjoint.identify.effects import SENSOR_EFFECTS, shift_late
+from mjjoint.identify.fit import fit
+from mjjoint.identify.structure import Structure
+from mjjoint.identify.windows import Measured, Predictor, WindowDesign
+from mjjoint.recordings import Recording
+
+PHYSICS = ("coulomb_friction", "viscous_friction", "linear_stiffness", "transmission_damping")
+TRUTH = {"coulomb_friction.fc": 0.05, "viscous_friction.sigma": 2e-4, "linear_stiffness.k1": 1e4,
+         "transmission_damping.d": 1.0}
+INJECTED = {"sensor_skew.lag": 2e-3, "torque_gain.gain": 1.2, "torque_offset.offset": 3.0}
+
+
+def test_a_late_read_is_the_signal_shifted_by_the_lag():
+    x = np.arange(10.0)[None, :] ** 2
+    assert np.allclose(shift_late(x, 2.0)[0, 2:], x[0, :-2])
+    assert np.allclose(shift_late(x, 0.5)[0, 1:], (x[0, :-1] + x[0, 1:]) / 2)
+
+
+def test_skew_and_torque_sensor_errors_are_recovered_where_injected():
+    truth = Structure.create(PHYSICS, ArmSpec(segments=0, gravity=0.0), 160.0, TRUTH)
+    arm, joint = truth.model_params()
+    trace = mjjoint.simulate(mjjoint.Multisine().sample(1000, 6), arm=arm, joint=joint)
+    lag = INJECTED["sensor_skew.lag"]
+    theta = np.interp(trace.t - lag, trace.t, trace.theta)  # the link encoder reads lag late
+    tau = INJECTED["torque_gain.gain"] * trace.tau + INJECTED["torque_offset.offset"]
+    rec = Recording(t=trace.t, u=trace.u, q=trace.q, theta=theta, tau=tau)
+    pred = Predictor(Measured.from_recording(rec, 160.0), WindowDesign())
+    start = truth.with_effect("sensor_skew").with_effect("torque_offset").with_effect("torque_gain")
+    res = fit(pred, start, names=tuple(INJECTED), max_iter=15)
+    v = res.structure.values
+    assert v["sensor_skew.lag"] == pytest.approx(lag, rel=0.1)
+    assert v["torque_gain.gain"] == pytest.approx(INJECTED["torque_gain.gain"], rel=0.02)
+    assert v["torque_offset.offset"] == pytest.approx(INJECTED["torque_offset.offset"], rel=0.05)
+
+
+def test_the_diagnosis_considers_sensor_effects_only_when_asked():
+    s = Structure.create(PHYSICS, ArmSpec(), 160.0)
+    assert not set(SENSOR_EFFECTS) & set(candidates_for(s))
+    assert set(candidates_for(s, SENSOR_EFFECTS)) == set(SENSOR_EFFECTS)
