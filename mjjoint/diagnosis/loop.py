@@ -380,6 +380,10 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     say("noise floor: the final model's simulated twin of the recording")
     floor = noise_floor(predictor, current.structure)
     explained = floor.explained(current.nrmse_test)
+    if not explained:
+        # An interval is the spread of estimates a right model would give; a model that misses
+        # the recording above its floor carries the miss in its parameters, uncounted.
+        current = dataclasses.replace(current, warnings=[*current.warnings, UNEXPLAINED_INTERVALS])
     stand_ins = on_bound(current.structure)
     verdict = _verdict(steps, initial, current, floor, explained, final_where, rejected, stand_ins)
     return Diagnosis(steps, initial, current, final_where, verdict,
@@ -387,6 +391,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                      floor, explained, stand_ins, unstable)
 
 
+UNEXPLAINED_INTERVALS = ("the final model misses the recording above its noise floor: its 95 % intervals assume "
+                         "a right model and understate the uncertainty")
 BOUND_SHARE = 1e-3  # a parameter within this share of its range (optimiser coordinate) of a bound sits on it
 
 
@@ -530,15 +536,33 @@ def _decide(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[floa
             options: DiagnoseOptions, floor_cost: float, max_p: float | None = None) -> _Choice:
     """The best screened candidate against ``ref`` and the acceptance tests it fails (module doc);
     ``floor_cost``: the noise floor in cost units; ``max_p``: the rank test's level, if not
-    ``options.max_p``."""
+    ``options.max_p``.
+
+    A bundle opens the path to an effect behind a prerequisite; it does not name that effect
+    while the prerequisite alone passes: then the prerequisite is named, and the effect behind
+    it screened against it next round (a friction asymmetry bundled with the Coulomb friction it
+    shifts would otherwise stand in for any direction-dependent force at once).
+    """
     max_p = options.max_p if max_p is None else max_p
     best, alternatives = _choose(screened, ref.cost_test)
-    cand = screened[best][1]
+    *needed, _ = parts(best)
+    alone = BUNDLE.join(needed)
+    if alone in screened:
+        first = _assess(predictor, ref, screened, alone, [], options, floor_cost, max_p)
+        if not first.failed:
+            return first
+    return _assess(predictor, ref, screened, best, alternatives, options, floor_cost, max_p)
+
+
+def _assess(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]], key: str,
+            alternatives: list[str], options: DiagnoseOptions, floor_cost: float, max_p: float) -> _Choice:
+    """The acceptance tests of candidate ``key`` against ``ref`` (module doc)."""
+    cand = screened[key][1]
     gain = 1.0 - cand.cost_test / ref.cost_test
     n = _n_residuals(predictor)
     p_now = len(ref.structure.params)
-    bic_ok = _bic(cand.cost_train, n, p_now + _n_params(best)) < _bic(ref.cost_train, n, p_now)
-    consistency = _consistency(predictor, parts(best)[-1], ref.structure, cand.structure)
+    bic_ok = _bic(cand.cost_train, n, p_now + _n_params(key)) < _bic(ref.cost_train, n, p_now)
+    consistency = _consistency(predictor, parts(key)[-1], ref.structure, cand.structure)
     min_abs = options.floor_share * floor_cost
     material = ref.cost_test - cand.cost_test >= min_abs
     inconsistent = consistency["p"] > max_p
@@ -548,7 +572,7 @@ def _decide(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[floa
         (f"absolute gain {ref.cost_test - cand.cost_test:.2g} < {min_abs:.2g} ({options.floor_share:g} of the "
          f"noise floor's cost)", not material),
         ("BIC higher", not bic_ok)) if fails]
-    return _Choice(best, cand, gain, alternatives, consistency, failed, inconsistent and len(failed) == 1)
+    return _Choice(key, cand, gain, alternatives, consistency, failed, inconsistent and len(failed) == 1)
 
 
 def _choose(screened: dict[str, tuple[float, FitResult]], cost_now: float) -> tuple[str, list[str]]:
