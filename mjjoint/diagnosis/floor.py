@@ -10,7 +10,11 @@ report (rms error over the signal's spread within the held-out windows):
 - **the windowing**: a simulated twin of the recording, made by the final model itself under
   the measured input without restarts, with that noise and quantisation added, predicted by
   the same model in the same windows. Its misfit is what window starts reconstructed from
-  noisy samples and hidden states (pre-sliding, lag, hysteresis) cost a model that is right;
+  noisy samples and hidden states (pre-sliding, lag, hysteresis) cost a model that is right,
+  as a share of the twin's own spread. A twin that wanders into another regime than the
+  recording's (an open-loop run of a closed-loop recording that drifts off; a model far from
+  the truth) gives none (``TWIN_SPREAD``): the floor is then the noise's alone, and the
+  verdict the stricter for it;
 - **resolution**: ``RESOLUTION`` of the spread, below which integration and interpolation
   differences between any two implementations of the same physics dominate.
 
@@ -31,6 +35,9 @@ EXPLAINED_RATIO = 1.5  # held-out NRMSE up to this multiple of the floor: within
 # A quantisation step is accepted when this share of the nonzero sample-to-sample changes are
 # whole multiples of the smallest one (to QUANTUM_TOL of it): a float signal's changes are not.
 QUANTUM_SHARE = 0.95
+# A twin whose signals spread more than this factor further or less far than the recording's is
+# in another regime (module doc): it gives no floor.
+TWIN_SPREAD = 2.0
 QUANTUM_TOL = 1e-2
 
 
@@ -130,11 +137,17 @@ def _twin_floor(predictor: Predictor, structure: Structure, noise: dict, quantum
     (pred,) = twin.predict([structure], windows)
     out = {}
     for s in spread:
+        own = twin.spread(s, windows)
+        if not 1 / TWIN_SPREAD <= own / spread[s] <= TWIN_SPREAD:
+            # An open-loop run of a closed-loop recording, or a model far off, wanders elsewhere:
+            # its windowing costs say nothing about this recording's.
+            return {}, (f"the final model's free run is not like the recording ({s} spreads {own / spread[s]:.2g}x "
+                        "as far): no twin")
         err = pred[s][:, twin.cols] - twin.meas[s][windows][:, twin.cols]
         rms = float(np.sqrt(np.mean(err ** 2)))
         if not np.isfinite(rms):
             return {}, "the final model could not predict its own twin: no twin"
-        out[s] = rms / spread[s]
+        out[s] = rms / own
     return out, ""
 
 
