@@ -340,7 +340,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 f"(abs {ref.cost_test - cand.cost_test:.3g}, paired p = {choice.consistency['p']:.3f} on "
                 f"{choice.consistency['windows']}): not significant")
             break
-        alternatives, consistency = [parts(a)[-1] for a in choice.alternatives], choice.consistency
+        alternatives, consistency = [a.replace(BUNDLE, ' + ') for a in choice.alternatives], choice.consistency
         tested_on, p_value = consistency["windows"], consistency["p"]
         say(f"adding {best} (held-out cost -{100 * gain:.1f} %, paired p = {p_value:.3g} on {tested_on}), refitting")
         refit = fit(predictor, cand.structure, max_iter=options.fit_iter, progress=iterations)
