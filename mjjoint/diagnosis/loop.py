@@ -122,7 +122,7 @@ class DiagnoseOptions:
     min_gain: float = 0.10       # relative held-out cost reduction needed to name an effect
     floor_share: float = 0.1     # absolute one, as a share of the noise floor's cost: below, immaterial
     max_p: float = 0.05          # Wilcoxon signed-rank p of the per-window held-out reductions
-    max_rounds: int = 4
+    max_rounds: int = 8          # a minimal start needs a round per missing term: the full joint has ~10
     screen_iter: int = 8         # LM iterations when screening a candidate
     fit_iter: int = 20           # LM iterations when refitting the whole structure
     candidates: tuple[str, ...] | None = None  # default: every effect
