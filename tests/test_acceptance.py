@@ -87,8 +87,9 @@ def _choice(monkeypatch, p: float, cand_test: float, cand_train: float = 0.5, ma
     monkeypatch.setattr(loop, "_consistency", lambda *a: {"p": p, "windows": "20 held-out windows"})
     monkeypatch.setattr(loop, "_n_residuals", lambda predictor: 10_000)
     ref = _fit(1.0, 0.01)
+    floor_cost = 5e-3  # material from 5e-4 on, a tenth of it (DiagnoseOptions.floor_share)
     return loop._decide(None, ref, {"input_delay": (cand_test, _fit(cand_train, cand_test))}, loop.DiagnoseOptions(),
-                        max_p)
+                        floor_cost, max_p)
 
 
 def test_only_a_material_gain_failing_the_rank_test_alone_is_looked_at_again(monkeypatch):

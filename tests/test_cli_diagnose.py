@@ -36,7 +36,8 @@ NOMINAL = ArmSpec(segments=0, gravity=0.0)
 GEAR_VALUES = {"linear_stiffness.k1": 1e4, "transmission_damping.d": 2.0}
 FAST = ["--window-length", "0.1", "--max-rounds", "1", "--candidates", "backlash,input_delay",
         "--fit-iter", "6", "--screen-iter", "4"]
-SCHEMA = {"missing", "steps", "final_model", "initial_fit", "final_fit", "final_where", "verdict", "budget"}
+SCHEMA = {"missing", "steps", "final_model", "initial_fit", "final_fit", "final_where", "verdict", "budget",
+          "noise_floor", "explained", "stand_ins", "unstable_screens"}
 
 
 def simulate_csv(path: Path, effects: tuple[str, ...], values: dict) -> Path:
@@ -135,15 +136,17 @@ def test_when_nothing_is_missing_it_says_so(files, capsys):
     assert diagnose_cli(files["exact"], files["model"], out) == 0
     d = json.loads((out / "diagnosis.json").read_text())
     assert d["missing"] == [] and d["steps"] == []
-    assert d["verdict"].startswith("nothing significant is missing")
+    assert d["verdict"].startswith("explained to the noise: nothing is missing") and d["explained"] is True
     assert "the best candidate" in d["verdict"] and "but fails: " in d["verdict"]  # which test, not a stock reason
+    floor = d["noise_floor"]["nrmse"]
+    assert all(d["final_fit"]["nrmse_heldout"][s] <= d["noise_floor"]["explained_ratio"] * floor[s] for s in floor)
     # The final model is the base structure re-estimated under the robust loss over windows
     # (docs/diagnosis.md, loop step 5): no effect added, nearly the same fit of this exact recording.
     before, after = d["initial_fit"]["nrmse_heldout"], d["final_fit"]["nrmse_heldout"]
     assert before.keys() == after.keys() and all(after[k] == pytest.approx(before[k], rel=0.05) for k in before)
     # and it is only reported if it predicts the held-out windows at least as well (loop step 5)
     assert d["final_fit"]["cost_heldout"] <= d["initial_fit"]["cost_heldout"]
-    assert capsys.readouterr().out.startswith("verdict: nothing significant is missing")
+    assert capsys.readouterr().out.startswith("verdict: explained to the noise: nothing is missing")
     html = (out / "index.html").read_text()
     assert html.count("<img ") == 2 and "Step 1" not in html
 

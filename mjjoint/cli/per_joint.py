@@ -113,9 +113,14 @@ def joints_verdict(data: dict[str, dict]) -> dict:
     elif mismatch:
         each = "; ".join(f"joint {j}: {e}" for j, e in zip(mismatch, named))
         parts.append(f"the mismatch is in joints {', '.join(map(str, mismatch))} ({each})")
-    if clean:
-        parts.append(f"nothing significant is missing in joint{'s' if len(clean) > 1 else ''} {', '.join(clean)}")
-    return {"joints": data, "mismatch_in": mismatch, "verdict": f"{'; '.join(parts)}. Note: {COUPLING}"}
+    explained = [j for j in clean if data[j].get("explained")]
+    unexplained = [j for j in clean if j not in explained]
+    for js, what in ((explained, "explained to the noise, nothing missing"),
+                     (unexplained, "nothing catalogued found, but a mismatch remains")):
+        if js:
+            parts.append(f"joint{'s' if len(js) > 1 else ''} {', '.join(js)}: {what}")
+    return {"joints": data, "mismatch_in": mismatch, "explained": all(d.get("explained") for d in data.values()),
+            "verdict": f"{'; '.join(parts)}. Note: {COUPLING}"}
 
 
 def _top_run(command: str, args: argparse.Namespace, jp: JointProblems, results: dict) -> dict:

@@ -26,12 +26,24 @@ ones no candidate explains (a start state the recording cannot give, such as 2SE
 memory of a resting motor), and least squares would let them bias the parameters
 (torque_ripple case, before window starts were moved off input steps: ripple 8 % small).
 Stopping rule (documented in docs/diagnosis.md): a candidate is accepted only if, on the
-held-out windows, it lowers the cost by at least ``min_gain`` (relative) and ``min_abs``
-(absolute, in squared NRMSE), the per-window reductions are consistent (one-sided Wilcoxon
+held-out windows, it lowers the cost by at least ``min_gain`` (relative) and ``floor_share`` of
+the recording's noise floor (absolute: ``floor``, the current model's own twin), the per-window
+reductions are consistent (one-sided Wilcoxon
 signed-rank p <= ``max_p``: a few lucky windows do not make an effect; a rank test because the
 reductions are heavy-tailed, large on transients and small elsewhere), AND it lowers the BIC
-n log(RSS/n) + p log(n), which charges every added parameter. When no candidate passes, the
-verdict says nothing significant is missing.
+n log(RSS/n) + p log(n), which charges every added parameter.
+
+Candidates: every catalogued effect the model lacks; one behind a prerequisite the model lacks
+too is screened together with it (a bundle "linear_stiffness+backlash"): a play cannot show
+through a rigid gear, and a gear spring alone may predict worse than none. A screen whose
+prediction is unstable is reported with the reason and screened again at half the timestep.
+
+Verdict: the final model's held-out NRMSE is judged against the recording's noise floor
+(``floor``): "explained" when every signal is within the floor's ratio. The verdict says one of:
+explained to the noise, nothing missing; effects found and the rest explained; effects found but
+a mismatch remains (which signal, how far above its floor, where and under which conditions);
+nothing in the catalogue explains the located mismatch. Parameters the final fit left on a
+bound are named as stand-ins.
 
 Effects that act mainly under one operating condition (``ACTS_UNDER``: 2SEP's pre-sliding and
 lag, Stribeck's break-away, after motor velocity reversals) are also rank-tested on the held-out
@@ -54,6 +66,7 @@ actually decided.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -61,12 +74,14 @@ from typing import Callable
 import numpy as np
 from scipy.stats import wilcoxon
 
+from ..assets.stability import check_model_stability
 from ..identify.effects import EFFECTS, SENSOR_EFFECTS, base_params, plant_effects
 from ..identify.fit import FitResult, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .clock import ScreenClock
 from .features import operating_conditions, reversal_proximity
+from .floor import EXPLAINED_RATIO, Floor, noise_floor
 from .locate import REVERSAL_WINDOW_S, locate
 
 # Which located conditions each effect would explain.
@@ -106,9 +121,9 @@ CONDITION_TEXT = {"reversal": "a motor velocity reversal"}
 @dataclass(frozen=True)
 class DiagnoseOptions:
     min_gain: float = 0.10       # relative held-out cost reduction needed to name an effect
-    min_abs: float = 5e-4        # absolute one (squared NRMSE): below it an effect is immaterial
+    floor_share: float = 0.1     # absolute one, as a share of the noise floor's cost: below, immaterial
     max_p: float = 0.05          # Wilcoxon signed-rank p of the per-window held-out reductions
-    max_rounds: int = 4
+    max_rounds: int = 8          # a minimal start needs a round per missing term: the full joint has ~10
     screen_iter: int = 8         # LM iterations when screening a candidate
     fit_iter: int = 20           # LM iterations when refitting the whole structure
     candidates: tuple[str, ...] | None = None  # default: every effect
@@ -130,13 +145,23 @@ class Step:
     alternatives: list[str] = field(default_factory=list)
     consistency: dict = field(default_factory=dict)  # the rank test: windows tested, p
     screen: str = "stand-ins held"  # or "all free": the second screen named it (module doc)
+    prerequisites: list[str] = field(default_factory=list)  # added with it: the model lacked them too
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        """The effects this step adds: its prerequisites the model lacked, then the effect."""
+        return (*self.prerequisites, self.effect)
+
+    @property
+    def label(self) -> str:
+        return self.effect + (f" (with {', '.join(self.prerequisites)})" if self.prerequisites else "")
 
     def as_dict(self) -> dict:
         return {"effect": self.effect, "evidence": self.evidence, "where": self.where,
                 "parameters": self.parameters, "fit_before": self.fit_before, "fit_after": self.fit_after,
                 "heldout_gain": self.gain, "screened": self.screened,
                 "indistinguishable_from": self.alternatives, "consistency_test": self.consistency,
-                "screen": self.screen}
+                "screen": self.screen, "prerequisites_added": self.prerequisites}
 
 
 @dataclass
@@ -149,10 +174,14 @@ class Diagnosis:
     rollouts: float
     seconds: float
     history: list[FitResult] = field(default_factory=list)
+    floor: Floor | None = None
+    explained: bool = False
+    stand_ins: dict[str, str] = field(default_factory=dict)   # parameter -> which bound it sits on
+    unstable: dict[str, str] = field(default_factory=dict)    # screened candidate -> why unstable
 
     @property
     def missing(self) -> list[str]:
-        return [s.effect for s in self.steps]
+        return [e for s in self.steps for e in s.effects]
 
     def as_dict(self) -> dict:
         return {"missing": self.missing, "steps": [s.as_dict() for s in self.steps],
@@ -162,6 +191,10 @@ class Diagnosis:
                 "initial_fit": {"nrmse_heldout": self.initial.nrmse_test, "cost_heldout": self.initial.cost_test},
                 "final_fit": {"nrmse_heldout": self.final.nrmse_test, "cost_heldout": self.final.cost_test},
                 "final_where": self.final_where,
+                "noise_floor": None if self.floor is None else self.floor.as_dict(),
+                "explained": self.explained,
+                "stand_ins": self.stand_ins,
+                "unstable_screens": self.unstable,
                 "verdict": self.verdict,
                 "budget": {"rollouts_full_length": round(self.rollouts, 1)}}
 
@@ -192,8 +225,20 @@ def residual_location(predictor: Predictor, structure: Structure, seed: int = 0)
     return locate(t, meas, sim, cond, seed=seed).as_dict()
 
 
-def _evidence(effect: str, where: dict) -> list[str]:
-    wanted = EVIDENCE.get(effect, ())
+BUNDLE = "+"  # joins an effect to the prerequisites screened with it: "linear_stiffness+backlash"
+
+
+def parts(key: str) -> tuple[str, ...]:
+    """The effects of a candidate: one, or a bundle (prerequisites first)."""
+    return tuple(key.split(BUNDLE))
+
+
+def _n_params(key: str) -> int:
+    return sum(len(EFFECTS[e].params) for e in parts(key))
+
+
+def _evidence(key: str, where: dict) -> list[str]:
+    wanted = {c for e in parts(key) for c in EVIDENCE.get(e, ())}
     out = []
     for sig, loc in where.get("signals", {}).items():
         for c in loc.get("conditions", []):
@@ -222,7 +267,7 @@ def _candidate_variants(effect: str, where: dict) -> list[tuple[dict, dict]]:
     return [({}, {})]
 
 
-def screened_params(effect: str, structure: Structure) -> list[str]:
+def screened_params(key: str, structure: Structure) -> list[str]:
     """The parameters freed when screening ``effect`` on ``structure``.
 
     The candidate's own; those of the effects it refines (adding hysteresis to a gear changes
@@ -232,19 +277,27 @@ def screened_params(effect: str, structure: Structure) -> list[str]:
     N s/m); and the inertias, which stand in for everything (EMPS without friction: 418 kg for
     a 95 kg axis). A candidate held against such stand-ins cannot show what it explains.
     """
-    site = EFFECTS[effect].site
-    related = [e for e in structure.effects if EFFECTS[e].site == site] + list(EFFECTS[effect].requires)
+    effects = parts(key)
+    sites = {EFFECTS[e].site for e in effects}
+    related = [e for e in structure.effects if EFFECTS[e].site in sites]
+    related += [r for e in effects for r in EFFECTS[e].requires]
     names = [p.name for p in base_params(structure.nominal)]
-    for e in dict.fromkeys([*related, effect]):
+    for e in dict.fromkeys([*related, *effects]):
         names += [p.name for p in EFFECTS[e].params]
     return names
 
 
 def candidates_for(structure: Structure, allowed=None) -> list[str]:
+    """The effects to screen on ``structure``: each one it lacks, bundled with the prerequisites
+    it lacks too (module doc)."""
     possible = plant_effects(structure.nominal)
     names = [e for e in possible if e not in SENSOR_EFFECTS] if allowed is None else [e for e in allowed if e in possible]
-    return [e for e in names if e not in structure.effects
-            and all(r in structure.effects for r in EFFECTS[e].requires)]
+    out = []
+    for e in names:
+        missing = [r for r in EFFECTS[e].requires if r not in structure.effects]
+        if e not in structure.effects and all(r in possible for r in missing):
+            out.append(BUNDLE.join([*missing, e]))
+    return out
 
 
 def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = DiagnoseOptions(),
@@ -261,25 +314,27 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     initial = current
     history = [current]
     steps: list[Step] = []
+    unstable: dict[str, str] = {}
     rejected = ""  # why the last round's best candidate was not added, for the verdict
     clock = ScreenClock(options.max_rounds)
     for k in range(1, options.max_rounds + 1):
         where = residual_location(predictor, current.structure)
         clock.round = k
-        ref, screened = _screen(predictor, current, where, options, say, clock)
+        floor_cost = noise_floor(predictor, current.structure).cost()
+        ref, screened = _screen(predictor, current, where, options, say, clock, unstable=unstable)
         if not screened:
             break
-        choice, screen = _decide(predictor, ref, screened, options), "stand-ins held"
+        choice, screen = _decide(predictor, ref, screened, options, floor_cost), "stand-ins held"
         if choice.only_inconsistent and options.free_all:
             say(f"  best candidate {choice.best} fails only the rank test ({choice.failed[0]}); screening "
                 "again with every parameter free, from the model refitted")
-            ref, screened = _screen(predictor, current, where, options, say, clock, free_all=True)
+            ref, screened = _screen(predictor, current, where, options, say, clock, free_all=True, unstable=unstable)
             if ref.cost_test < current.cost_test:  # the same structure, fitted further
                 current = history[-1] = ref
                 initial = initial if steps else ref
             # A second look at the same question: each look at half the level keeps the pair at
             # max_p (Bonferroni), so the escalation cannot raise the false-addition rate.
-            choice, screen = _decide(predictor, ref, screened, options, options.max_p / 2), "all free"
+            choice, screen = _decide(predictor, ref, screened, options, floor_cost, options.max_p / 2), "all free"
         best, cand, gain = choice.best, choice.cand, choice.gain
         if choice.failed:
             rejected = (f"the best candidate, {best}, lowers the held-out cost by {100 * gain:.1f} % "
@@ -288,7 +343,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 f"(abs {ref.cost_test - cand.cost_test:.3g}, paired p = {choice.consistency['p']:.3f} on "
                 f"{choice.consistency['windows']}): not significant")
             break
-        alternatives, consistency = choice.alternatives, choice.consistency
+        alternatives, consistency = [a.replace(BUNDLE, ' + ') for a in choice.alternatives], choice.consistency
         tested_on, p_value = consistency["windows"], consistency["p"]
         say(f"adding {best} (held-out cost -{100 * gain:.1f} %, paired p = {p_value:.3g} on {tested_on}), refitting")
         refit = fit(predictor, cand.structure, max_iter=options.fit_iter, progress=iterations)
@@ -302,9 +357,10 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 say(f"  robust refit: held-out cost {robust.cost_test:.4g} against least squares' "
                     f"{refit.cost_test:.4g}: kept")
                 refit = robust
+        *needed, principal = parts(best)
         steps.append(Step(
-            effect=best, evidence=_evidence(best, where), where=where,
-            parameters={p.name: refit.structure.values[p.name] for p in EFFECTS[best].params},
+            effect=principal, prerequisites=needed, evidence=_evidence(best, where), where=where,
+            parameters={p.name: refit.structure.values[p.name] for e in parts(best) for p in EFFECTS[e].params},
             fit_before=current.nrmse_test, fit_after=refit.nrmse_test,
             gain=1.0 - refit.cost_test / current.cost_test,
             screened={k: v[0] for k, v in screened.items()}, alternatives=alternatives,
@@ -324,19 +380,76 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             else:
                 history.append(current)
     final_where = residual_location(predictor, current.structure)
-    if steps:
-        found = {s.effect for s in steps}
-
-        def rivals(step: Step) -> str:  # rivals found later are no longer alternatives
-            alt = [a for a in step.alternatives if a not in found]
-            return f" (or, indistinguishable here, {' / '.join(alt)})" if alt else ""
-        named = [s.effect + rivals(s) for s in steps]
-        verdict = (f"missing physics found: {', '.join(named)}; held-out cost "
-                   f"{initial.cost_test:.4g} -> {current.cost_test:.4g}")
-    else:
-        verdict = "nothing significant is missing" + (f": {rejected}" if rejected else "")
+    say("noise floor: the final model's simulated twin of the recording")
+    floor = noise_floor(predictor, current.structure)
+    explained = floor.explained(current.nrmse_test)
+    if not explained:
+        # An interval is the spread of estimates a right model would give; a model that misses
+        # the recording above its floor carries the miss in its parameters, uncounted.
+        current = dataclasses.replace(current, warnings=[*current.warnings, UNEXPLAINED_INTERVALS])
+    bounds = stand_ins(current)
+    verdict = _verdict(steps, initial, current, floor, explained, final_where, rejected, bounds)
     return Diagnosis(steps, initial, current, final_where, verdict,
-                     predictor.rollouts - roll0, time.perf_counter() - t_start, history)
+                     predictor.rollouts - roll0, time.perf_counter() - t_start, history,
+                     floor, explained, bounds, unstable)
+
+
+UNEXPLAINED_INTERVALS = ("the final model misses the recording above its noise floor: its 95 % intervals assume "
+                         "a right model and understate the uncertainty")
+def stand_ins(result: FitResult) -> dict[str, str]:
+    """{parameter: "lower" | "upper"} for the parameters the fit left on a bound
+    (``FitResult.on_bound``): stand-ins for something the structure lacks, not estimates."""
+    params = {p.name: p for p in result.structure.params}
+    out = {}
+    for name in result.on_bound:
+        p = params[name]
+        x = p.to_unit(result.structure.values[name])
+        out[name] = "lower" if x - p.to_unit(p.lo) < p.to_unit(p.hi) - x else "upper"
+    return out
+
+
+def _verdict(steps: list[Step], initial: FitResult, final: FitResult, floor: Floor, explained: bool,
+             where: dict, rejected: str, stand_ins: dict[str, str]) -> str:
+    """One of the four verdicts (module doc), in one paragraph."""
+    found = {e for s in steps for e in s.effects}
+
+    def rivals(step: Step) -> str:  # rivals found later are no longer alternatives
+        alt = [a for a in step.alternatives if a not in found]
+        return f" (or, indistinguishable here, {' / '.join(alt)})" if alt else ""
+    named = ", ".join(s.label + rivals(s) for s in steps)
+    if steps and explained:
+        text = f"missing physics found: {named}; with it the recording is explained to the noise"
+    elif steps:
+        text = f"missing physics found: {named}; a mismatch remains: {mismatch(final, floor, where)}"
+    elif explained:
+        text = "explained to the noise: nothing is missing" + (f"; {rejected}" if rejected else "")
+    else:
+        text = (f"unexplained: no catalogued effect explains the mismatch: {mismatch(final, floor, where)}"
+                + (f"; {rejected}" if rejected else ""))
+    if steps:
+        text += f" (held-out cost {initial.cost_test:.4g} -> {final.cost_test:.4g})"
+    if stand_ins:
+        text += ("; on a bound, stand-ins rather than estimates: "
+                 + ", ".join(f"{k} = {final.structure.values[k]:.4g} ({v})" for k, v in stand_ins.items()))
+    return text
+
+
+def mismatch(final: FitResult, floor: Floor, where: dict) -> str:
+    """Which signals miss by how much against their floor, and where the worst one does."""
+    ratios = floor.ratios(final.nrmse_test)
+    over = sorted((s for s, r in ratios.items() if not r <= EXPLAINED_RATIO), key=lambda s: -ratios[s])
+    if not over:
+        return "none above the noise floor"
+    nf = floor.nrmse
+    signals = ", ".join(f"{s} held-out NRMSE {final.nrmse_test[s]:.3g} against a floor of {nf[s]:.3g}"
+                        for s in over)
+    loc = where.get("signals", {}).get(over[0], {})
+    conds = [c["description"] for c in loc.get("conditions", []) if c.get("significant")]
+    spans = loc.get("windows", [])[:3]
+    at = ", ".join(f"{a:.2f}-{b:.2f} s" for a, b, _ in spans)
+    return (signals + (f"; {over[0]}'s residual concentrates {'; '.join(conds)}" if conds else
+                       f"; {over[0]}'s residual concentrates under no condition looked at")
+            + (f"; largest at {at}" if at else ""))
 
 
 TIE_SHARE = 0.9  # a candidate explaining >= 90 % of the best one's held-out gain is a rival
@@ -353,14 +466,16 @@ def _robust(predictor: Predictor, result: FitResult, options: DiagnoseOptions, p
 
 
 def _screen(predictor: Predictor, current: FitResult, where: dict, options: DiagnoseOptions, say,
-            clock: ScreenClock, free_all: bool = False) -> tuple[FitResult, dict[str, tuple[float, FitResult]]]:
+            clock: ScreenClock, free_all: bool = False, unstable: dict[str, str] | None = None
+            ) -> tuple[FitResult, dict[str, tuple[float, FitResult]]]:
     """(the fit candidates are held against, {effect: (held-out cost, fit)}) of one screening.
 
     Held stand-ins (default): each candidate frees ``screened_params`` and is held against the
     current fit. ``free_all``: the current structure is first refitted with every parameter
     free (``fit_iter`` iterations more: a fit that had not converged would otherwise credit any
     flexible candidate with the rest of its descent), and each candidate frees every parameter
-    from there and is held against that refit (module doc).
+    from there and is held against that refit (module doc). A screen whose prediction is
+    unstable is screened again at half the timestep, and why it was goes to ``unstable``.
     """
     ref = current
     if free_all:
@@ -368,14 +483,22 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         say(f"  reference, the model refitted: held-out cost {current.cost_test:.4g} -> {ref.cost_test:.4g}")
     screened: dict[str, tuple[float, FitResult]] = {}
     trials = [(name, values, settings) for name in candidates_for(ref.structure, options.candidates)
-              for values, settings in _candidate_variants(name, where)]
+              for values, settings in _candidate_variants(parts(name)[-1], where)]
     say(f"round {clock.round} of {clock.rounds}: screening {len(trials)} candidate fits"
         + (" with every parameter free" if free_all else ""))
     for i, (name, values, settings) in enumerate(trials, 1):
         start = time.perf_counter()
-        trial = ref.structure.with_effect(name, values, settings)
+        *needed, effect = parts(name)
+        trial = ref.structure
+        for e in needed:
+            trial = trial.with_effect(e)
+        trial = trial.with_effect(effect, values, settings)
         freed = None if free_all else screened_params(name, ref.structure)
         res = fit(predictor, trial, freed, max_iter=options.screen_iter)
+        if not res.cost_test < UNSTABLE_COST and unstable is not None:
+            unstable[name] = _instability(trial)
+            say(f"  screened {name}: unstable prediction ({unstable[name]}); again at half the timestep")
+            res = fit(predictor, _halved_step(trial), freed, max_iter=options.screen_iter)
         clock.record(time.perf_counter() - start)
         if name not in screened or res.cost_test < screened[name][0]:
             screened[name] = (res.cost_test, res)
@@ -383,6 +506,24 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         say(f"  screened {label}: held-out cost {ref.cost_test:.4g} -> {res.cost_test:.4g} "
             f"({clock.status(i, len(trials))})")
     return ref, screened
+
+
+UNSTABLE_COST = 1e5  # a held-out cost this high holds predictions that diverged (identify.fit._BAD)
+
+
+def _instability(structure: Structure) -> str:
+    """Why a structure's prediction diverged, in one line."""
+    from ..identify.windows import _compile
+    try:
+        check_model_stability(_compile(*structure.model_params()), hint="the plant's timestep")
+    except ValueError as err:
+        return str(err)
+    return "the simulation diverged from the window starts"
+
+
+def _halved_step(structure: Structure) -> Structure:
+    nominal = structure.nominal
+    return dataclasses.replace(structure, nominal=dataclasses.replace(nominal, timestep=nominal.timestep / 2))
 
 
 @dataclass
@@ -397,25 +538,46 @@ class _Choice:
 
 
 def _decide(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],
-            options: DiagnoseOptions, max_p: float | None = None) -> _Choice:
+            options: DiagnoseOptions, floor_cost: float, max_p: float | None = None) -> _Choice:
     """The best screened candidate against ``ref`` and the acceptance tests it fails (module doc);
-    ``max_p``: the rank test's level, if not ``options.max_p``."""
+    ``floor_cost``: the noise floor in cost units; ``max_p``: the rank test's level, if not
+    ``options.max_p``.
+
+    A bundle opens the path to an effect behind a prerequisite; it does not name that effect
+    while the prerequisite alone passes: then the prerequisite is named, and the effect behind
+    it screened against it next round (a friction asymmetry bundled with the Coulomb friction it
+    shifts would otherwise stand in for any direction-dependent force at once).
+    """
     max_p = options.max_p if max_p is None else max_p
     best, alternatives = _choose(screened, ref.cost_test)
-    cand = screened[best][1]
+    *needed, _ = parts(best)
+    alone = BUNDLE.join(needed)
+    if alone in screened:
+        first = _assess(predictor, ref, screened, alone, [], options, floor_cost, max_p)
+        if not first.failed:
+            return first
+    return _assess(predictor, ref, screened, best, alternatives, options, floor_cost, max_p)
+
+
+def _assess(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]], key: str,
+            alternatives: list[str], options: DiagnoseOptions, floor_cost: float, max_p: float) -> _Choice:
+    """The acceptance tests of candidate ``key`` against ``ref`` (module doc)."""
+    cand = screened[key][1]
     gain = 1.0 - cand.cost_test / ref.cost_test
     n = _n_residuals(predictor)
     p_now = len(ref.structure.params)
-    bic_ok = _bic(cand.cost_train, n, p_now + len(EFFECTS[best].params)) < _bic(ref.cost_train, n, p_now)
-    consistency = _consistency(predictor, best, ref.structure, cand.structure)
-    material = ref.cost_test - cand.cost_test >= options.min_abs
+    bic_ok = _bic(cand.cost_train, n, p_now + _n_params(key)) < _bic(ref.cost_train, n, p_now)
+    consistency = _consistency(predictor, parts(key)[-1], ref.structure, cand.structure)
+    min_abs = options.floor_share * floor_cost
+    material = ref.cost_test - cand.cost_test >= min_abs
     inconsistent = consistency["p"] > max_p
     failed = [test for test, fails in (
         (f"paired p = {consistency['p']:.3f} > {max_p:g}", inconsistent),
         (f"gain {100 * gain:.1f} % < {100 * options.min_gain:.0f} %", gain < options.min_gain),
-        (f"absolute gain {ref.cost_test - cand.cost_test:.2g} < {options.min_abs:g}", not material),
+        (f"absolute gain {ref.cost_test - cand.cost_test:.2g} < {min_abs:.2g} ({options.floor_share:g} of the "
+         f"noise floor's cost)", not material),
         ("BIC higher", not bic_ok)) if fails]
-    return _Choice(best, cand, gain, alternatives, consistency, failed, inconsistent and len(failed) == 1)
+    return _Choice(key, cand, gain, alternatives, consistency, failed, inconsistent and len(failed) == 1)
 
 
 def _choose(screened: dict[str, tuple[float, FitResult]], cost_now: float) -> tuple[str, list[str]]:
@@ -429,7 +591,7 @@ def _choose(screened: dict[str, tuple[float, FitResult]], cost_now: float) -> tu
     best = min(screened, key=lambda k: screened[k][0])
     gain = cost_now - screened[best][0]
     rivals = [k for k in screened if gain > 0 and cost_now - screened[k][0] >= TIE_SHARE * gain]
-    chosen = min(rivals or [best], key=lambda k: (len(EFFECTS[k].params), len(EFFECTS[k].requires), screened[k][0]))
+    chosen = min(rivals or [best], key=lambda k: (_n_params(k), len(EFFECTS[parts(k)[-1]].requires), screened[k][0]))
     return chosen, sorted(k for k in rivals if k != chosen)
 
 

@@ -281,9 +281,11 @@ def rigid_gear(arm: ArmSpec, gear_ratio: float) -> Transmission:
     The plugin's torques are explicit, so the stiffest stable spring on the reduced inertia
     J of the two sides has sqrt(k/J) h = 0.5, and D = J/h damps it critically while D h/J = 1
     stays inside the explicit-damping limit of 2. The deflection left is ~1e-4 of a real
-    gear's, and T = k delta + D delta' is the torque the rigid gear transmits.
+    gear's, and T = k delta + D delta' is the torque the rigid gear transmits. Behind the gear
+    of a flexible rod is the hub alone: the segments decouple at these frequencies.
     """
-    j_red = 1.0 / (1.0 / arm.link_inertia + 1.0 / (arm.motor_inertia * gear_ratio ** 2))
+    link = arm.hub_inertia if arm.segments else arm.link_inertia
+    j_red = 1.0 / (1.0 / link + 1.0 / (arm.motor_inertia * gear_ratio ** 2))
     h = arm.timestep
     return Transmission(gear_ratio=gear_ratio, k1=j_red * (0.5 / h) ** 2, k3=0.0, damping=j_red / h,
                         hysteresis=None)

@@ -7,11 +7,12 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from ..assets import load_model
+from ..assets import ArmSpec, load_model
 from ..assets.drive import DriveSpec
 from ..assets.plant import build_plant
+from .effects import (EFFECTS, Model, Param, Plant, base_params, check_effects, minimal_model, plant_effects,
+                      rigid_gear)
 from .initial import Estimate
-from .effects import EFFECTS, Model, Param, Plant, base_params, check_effects, minimal_model, plant_effects
 
 
 @dataclass(frozen=True)
@@ -103,7 +104,12 @@ class Structure:
         v = {**self.values, **self.settings}
         for name in self.effects:
             model = EFFECTS[name].apply(model, v)
-        return model
+        arm, joint = model
+        if isinstance(arm, ArmSpec) and arm.segments and "linear_stiffness" not in self.effects:
+            # The rigid gear's spring is as stiff as the inertia behind it allows; a flexible
+            # rod decouples at its first hinge, leaving the hub (effects.rigid_gear).
+            joint = dataclasses.replace(joint, transmission=rigid_gear(arm, self.gear_ratio))
+        return arm, joint
 
     def measured(self, pred: dict, rate: float) -> dict:
         """Predicted signals as this structure's sensors report them (sensor effects)."""

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 from html import escape
 
+from ..diagnosis.floor import EXPLAINED_RATIO
 from ..identify.effects import EFFECTS
 from .summary import SIGNAL_ORDER, parameter_rows, step_values
 
+FLOOR_NOTE = f"{EXPLAINED_RATIO:g}x its noise floor, diagnosis/floor.py"
 STYLE = """
 body { font-family: sans-serif; max-width: 1060px; margin: 2em auto; color: #222; }
 .verdict { font-size: 1.25em; padding: .6em .9em; border-left: 6px solid #2a7; background: #eef8f1; }
@@ -100,7 +102,10 @@ def diagnosis_page(diag: dict, images: dict, source: str, run: dict) -> str:
     body += ["<h2>Held-out prediction error</h2>",
              "<p>NRMSE of the windowed predictions on held-out windows (rms error / the signal's spread).</p>",
              nrmse_table({"base model": diag["initial_fit"]["nrmse_heldout"],
-                          "final model": diag["final_fit"]["nrmse_heldout"]}),
+                          "final model": diag["final_fit"]["nrmse_heldout"],
+                          **({"noise floor": diag["noise_floor"]["nrmse"]} if diag.get("noise_floor") else {})}),
+             f"<p>Explained to the noise (every signal within {FLOOR_NOTE}): "
+             f"<b>{'yes' if diag.get('explained') else 'no'}</b>.</p>",
              _img(images["windows"], "measured vs predicted on held-out windows"),
              _img(images["residual"], "residual over time with located windows")]
     for k, step in enumerate(diag["steps"], 1):

@@ -81,14 +81,21 @@ def diagnosis_summary(diag: dict, seconds: float) -> str:
         final = diag["final_model"]
         for k, st in enumerate(steps, 1):
             e = st["effect"]
-            lines.append(f"  {k}. {e} - {EFFECTS[e].physics}; held-out cost "
+            with_ = st.get("prerequisites_added") or []
+            label = e + (f" (with {', '.join(with_)})" if with_ else "")
+            lines.append(f"  {k}. {label} - {EFFECTS[e].physics}; held-out cost "
                          f"{-100 * st['heldout_gain']:+.1f} %")
             for name, value, interval, unit, flag in parameter_rows(
                     step_values(st, final), final["intervals_95"], final["warnings"], final.get("units")):
                 ci = "" if interval == "-" else f"  95 % {interval}"
                 lines.append(f"       {name} = {value} {unit}".rstrip() + ci + ("  (!)" if flag else ""))
-    lines.append("held-out NRMSE per signal (base model -> final model):")
-    lines += nrmse_lines(diag["initial_fit"]["nrmse_heldout"], diag["final_fit"]["nrmse_heldout"])
+    lines.append("held-out NRMSE per signal (base model -> final model; noise floor):")
+    floor = (diag.get("noise_floor") or {}).get("nrmse", {})
+    before = diag["initial_fit"]["nrmse_heldout"]
+    shown = [s for s in SIGNAL_ORDER if s in before]  # nrmse_lines' order
+    lines += [line + (f"   floor {floor[s]:.4f}" if s in floor else "")
+              for s, line in zip(shown, nrmse_lines(before, diag["final_fit"]["nrmse_heldout"]))]
+    lines.append(f"explained to the noise: {'yes' if diag.get('explained') else 'no'}")
     if diag["final_model"]["warnings"]:
         lines.append("fit warnings:")
         lines += [f"  - {w}" for w in diag["final_model"]["warnings"]]

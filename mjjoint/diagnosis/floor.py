@@ -1,0 +1,163 @@
+"""The noise floor of a recording: how closely the right model could predict it.
+
+A verdict is a claim about the final model's held-out misfit, so it is judged against what a
+correct model would still miss on this very recording, per signal, in the NRMSE the fits
+report (rms error over the signal's spread within the held-out windows):
+
+- **measurement noise**: the white part of each recorded signal (its robust spread about a
+  smoothing, ``windows.noise_std``), and at least its quantisation (the common step of its
+  values, step / sqrt(12));
+- **the windowing**: a simulated twin of the recording, made by the final model itself under
+  the measured input without restarts, with that noise and quantisation added, predicted by
+  the same model in the same windows. Its misfit is what window starts reconstructed from
+  noisy samples and hidden states (pre-sliding, lag, hysteresis) cost a model that is right,
+  as a share of the twin's own spread. A twin that wanders into another regime than the
+  recording's (an open-loop run of a closed-loop recording that drifts off; a model far from
+  the truth) gives none (``TWIN_SPREAD``): the floor is then the noise's alone, and the
+  verdict the stricter for it;
+- **resolution**: ``RESOLUTION`` of the spread, below which integration and interpolation
+  differences between any two implementations of the same physics dominate.
+
+The floor of a signal is the largest of the three. The model explains the recording when every
+signal's held-out NRMSE is within ``EXPLAINED_RATIO`` of its floor.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..identify.structure import Structure
+from ..identify.windows import Measured, Predictor, noise_std
+
+RESOLUTION = 0.01      # NRMSE no model comparison resolves below (module doc)
+EXPLAINED_RATIO = 1.5  # held-out NRMSE up to this multiple of the floor: within the noise
+# A quantisation step is accepted when this share of the nonzero sample-to-sample changes are
+# whole multiples of the smallest one (to QUANTUM_TOL of it): a float signal's changes are not.
+QUANTUM_SHARE = 0.95
+# A twin whose signals spread more than this factor further or less far than the recording's is
+# in another regime (module doc): it gives no floor.
+TWIN_SPREAD = 2.0
+QUANTUM_TOL = 1e-2
+
+
+@dataclass(frozen=True)
+class Floor:
+    """Per signal: noise std and quantisation step [signal units], the floors as NRMSE."""
+
+    noise: dict[str, float]
+    quantum: dict[str, float]
+    measurement: dict[str, float]       # NRMSE of the measurement noise alone
+    twin: dict[str, float]              # NRMSE of the right model on its noisy twin (may be empty)
+    note: str = ""                      # why the twin is missing, if it is
+    signals: tuple[str, ...] = field(default=())
+
+    @property
+    def nrmse(self) -> dict[str, float]:
+        """The floor of each signal (module doc)."""
+        return {s: max(self.measurement[s], self.twin.get(s, 0.0), RESOLUTION) for s in self.signals}
+
+    def ratios(self, nrmse: dict[str, float]) -> dict[str, float]:
+        """Each signal's held-out NRMSE over its floor (inf where the prediction failed)."""
+        floor = self.nrmse
+        return {s: (float(nrmse[s]) / floor[s] if np.isfinite(nrmse[s]) else np.inf) for s in self.signals}
+
+    def explained(self, nrmse: dict[str, float]) -> bool:
+        return all(r <= EXPLAINED_RATIO for r in self.ratios(nrmse).values())
+
+    def cost(self) -> float:
+        """The floor in the fit's cost units (mean squared normalised residual over signals)."""
+        return float(np.mean([v * v for v in self.nrmse.values()]))
+
+    def as_dict(self) -> dict:
+        return {"nrmse": self.nrmse, "measurement_nrmse": self.measurement, "twin_nrmse": self.twin,
+                "noise_std": self.noise, "quantisation_step": self.quantum,
+                "explained_ratio": EXPLAINED_RATIO, "resolution": RESOLUTION, **({"note": self.note} if self.note else {})}
+
+
+def quantisation_step(x: np.ndarray) -> float:
+    """The step a quantised signal's values move by (0 when they move by arbitrary amounts)."""
+    d = np.abs(np.diff(np.asarray(x, float)))
+    d = d[d > 0]
+    if d.size < 10:
+        return 0.0
+    step = float(np.min(d))
+    k = d / step
+    on_grid = np.abs(k - np.round(k)) <= QUANTUM_TOL
+    return step if np.mean(on_grid) >= QUANTUM_SHARE else 0.0
+
+
+def sensor_noise(x: np.ndarray, rate: float, per_segment=None) -> tuple[float, float]:
+    """(noise std, quantisation step) of a recorded signal: the std at least step / sqrt(12);
+    ``per_segment``: each stacked recording smoothed on its own (``windows.noise_std``)."""
+    step = quantisation_step(x)
+    return max(noise_std(x, rate, per_segment), step / np.sqrt(12.0)), step
+
+
+def measured_signals(m: Measured) -> dict[str, np.ndarray]:
+    return {k: v for k, v in (("q", m.q), ("theta", m.theta), ("delta", m.delta), ("tau", m.tau)) if v is not None}
+
+
+def noise_floor(predictor: Predictor, structure: Structure | None = None, seed: int = 0) -> Floor:
+    """The floor of the recording behind ``predictor``; with ``structure``, its twin too (module doc)."""
+    m = predictor.m
+    windows = predictor.test
+    signals = tuple(s for s in ("q", "theta", "delta", "tau") if predictor.meas.get(s) is not None)
+    noise, quantum = {}, {}
+    for s, x in measured_signals(m).items():
+        noise[s], quantum[s] = sensor_noise(x, m.rate, m.per_segment)
+    if "delta" in noise:  # derived from q and theta: their noises add, whatever the fit of its own
+        noise["delta"] = float(np.hypot(noise["q"] / m.gear_ratio, noise["theta"]))
+        quantum["delta"] = 0.0
+    spread = {s: predictor.spread(s, windows) for s in signals}
+    measurement = {s: noise[s] / spread[s] for s in signals}
+    twin, note = {}, ""
+    if structure is not None:
+        twin, note = _twin_floor(predictor, structure, noise, quantum, spread, seed)
+    return Floor(noise, quantum, measurement, twin, note, signals)
+
+
+def _twin_floor(predictor: Predictor, structure: Structure, noise: dict, quantum: dict, spread: dict,
+                seed: int) -> tuple[dict[str, float], str]:
+    """NRMSE per signal of ``structure`` predicting its own noisy twin in the same windows."""
+    run = predictor.free_run(structure)
+    m = predictor.m
+    if not all(np.all(np.isfinite(run[s])) for s in ("q", "theta", "tau") if getattr(m, s) is not None):
+        return {}, "the final model's free run of the recording diverged: no twin"
+    rng = np.random.default_rng(seed)
+
+    def recorded(s: str) -> np.ndarray | None:
+        if getattr(m, s) is None:
+            return None
+        x = run[s] + rng.normal(0.0, noise[s], len(run[s]))
+        return np.round(x / quantum[s]) * quantum[s] if quantum[s] > 0 else x
+    rec = _Twin(t=m.t, u=m.u, q=recorded("q"), theta=recorded("theta"), tau=recorded("tau"))
+    twin_m = replace(Measured.from_recording(rec, m.gear_ratio, output=m.theta is not None), joins=m.joins)
+    twin = Predictor(twin_m, predictor.design, predictor.nthread)
+    windows = twin.test
+    (pred,) = twin.predict([structure], windows)
+    out = {}
+    for s in spread:
+        own = twin.spread(s, windows)
+        if not 1 / TWIN_SPREAD <= own / spread[s] <= TWIN_SPREAD:
+            # An open-loop run of a closed-loop recording, or a model far off, wanders elsewhere:
+            # its windowing costs say nothing about this recording's.
+            return {}, (f"the final model's free run is not like the recording ({s} spreads {own / spread[s]:.2g}x "
+                        "as far): no twin")
+        err = pred[s][:, twin.cols] - twin.meas[s][windows][:, twin.cols]
+        rms = float(np.sqrt(np.mean(err ** 2)))
+        if not np.isfinite(rms):
+            return {}, "the final model could not predict its own twin: no twin"
+        out[s] = rms / own
+    return out, ""
+
+
+@dataclass(frozen=True)
+class _Twin:
+    """The columns ``Measured.from_recording`` reads."""
+
+    t: np.ndarray
+    u: np.ndarray
+    q: np.ndarray
+    theta: np.ndarray | None
+    tau: np.ndarray | None

@@ -1,0 +1,113 @@
+"""The noise floor a verdict is judged against (diagnosis/floor.py) and the window starts of a
+flexible link (identify/windows.py), which set how low that floor can be."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mjjoint import Multisine, Simulator
+from mjjoint.assets import ArmSpec
+from mjjoint.diagnosis.floor import EXPLAINED_RATIO, noise_floor, quantisation_step, sensor_noise
+from mjjoint.identify import windows
+from mjjoint.identify.fit import evaluate
+from mjjoint.identify.structure import Structure
+from mjjoint.identify.windows import Measured, Predictor, WindowDesign
+from mjjoint.recordings import Recording
+
+RATE = 1000.0
+N = 160.0
+LSB = 2 * math.pi / 2 ** 15
+TAU_NOISE = 0.01  # [N m]
+
+
+def _recording(truth: Structure, seconds: float, seed: int = 0) -> Recording:
+    """The truth under a multisine, with a 15-bit motor resolver and a noisy torque cell."""
+    u = Multisine(amplitude=0.3).sample(RATE, seconds)
+    tr = Simulator(truth.compile(), sample_rate=RATE).run(u)
+    rng = np.random.default_rng(seed)
+    q = np.round(tr.q / LSB) * LSB
+    tau = tr.tau + rng.normal(0.0, TAU_NOISE, len(tr.tau))
+    return Recording(t=tr.t, u=tr.u, q=q, theta=tr.theta, tau=tau, gear_ratio=N, meta={})
+
+
+def _predictor(rec: Recording) -> Predictor:
+    return Predictor(Measured.from_recording(rec, N), WindowDesign())
+
+
+@pytest.fixture(scope="module")
+def rigid():
+    truth = Structure.create(("coulomb_friction", "viscous_friction", "linear_stiffness", "transmission_damping"),
+                             ArmSpec(segments=0), N)
+    return truth, _predictor(_recording(truth, 6.0))
+
+
+def test_quantisation_step_is_found_and_a_float_signal_has_none():
+    t = np.arange(5000) / RATE
+    x = 0.3 * np.sin(2 * np.pi * 1.3 * t) + 0.05 * np.sin(2 * np.pi * 7.0 * t)
+    assert quantisation_step(np.round(x / LSB) * LSB) == pytest.approx(LSB, rel=1e-6)
+    assert quantisation_step(x) == 0.0
+
+
+def test_white_noise_is_estimated_on_a_moving_signal():
+    t = np.arange(20000) / RATE
+    rng = np.random.default_rng(1)
+    x = 2.0 * np.sin(2 * np.pi * 0.8 * t) + rng.normal(0.0, 0.01, t.size)
+    sigma, step = sensor_noise(x, RATE)
+    assert step == 0.0 and sigma == pytest.approx(0.01, rel=0.15)
+
+
+def test_the_right_model_is_explained_and_a_model_missing_physics_is_not(rigid):
+    truth, predictor = rigid
+    floor = noise_floor(predictor, truth)
+    nrmse = evaluate(predictor, truth)[3]
+    assert floor.twin and floor.explained(nrmse), (floor.ratios(nrmse), floor.nrmse)
+    # The torque cell's noise shows in tau's measurement floor (std / spread within windows).
+    assert floor.noise["tau"] == pytest.approx(TAU_NOISE, rel=0.25)
+    lacking = truth.with_values({"coulomb_friction.fc": 1e-3 * truth.values["coulomb_friction.fc"]})
+    lacking_nrmse = evaluate(predictor, lacking)[3]
+    assert not noise_floor(predictor, lacking).explained(lacking_nrmse)
+    assert max(noise_floor(predictor, lacking).ratios(lacking_nrmse).values()) > EXPLAINED_RATIO
+
+
+def test_a_flexible_links_windows_start_with_the_rod_the_hub_drove(monkeypatch):
+    truth = Structure.create(("coulomb_friction", "linear_stiffness", "transmission_damping", "link_flexibility"),
+                             ArmSpec(segments=4), N)
+    rec = _recording(truth, 5.0)
+    with_lead = evaluate(_predictor(rec), truth)[3]
+    monkeypatch.setattr(windows, "FLEX_LEAD", 0.0)
+    straight = evaluate(_predictor(rec), truth)[3]
+    assert with_lead["tau"] < 0.5 * straight["tau"] and with_lead["delta"] < 0.5 * straight["delta"], (with_lead, straight)
+
+
+def test_an_effect_behind_a_missing_prerequisite_is_screened_with_it():
+    from mjjoint.diagnosis.loop import candidates_for, parts
+    minimal = Structure.create((), ArmSpec(), N)
+    found = candidates_for(minimal)
+    assert "linear_stiffness+backlash" in found and "linear_stiffness+transmission_hysteresis" in found
+    assert "backlash" not in found and "linear_stiffness" in found
+    stiff = minimal.with_effect("linear_stiffness")
+    assert "backlash" in candidates_for(stiff) and "linear_stiffness+backlash" not in candidates_for(stiff)
+    assert parts("linear_stiffness+backlash") == ("linear_stiffness", "backlash")
+
+
+def test_a_rigid_gear_on_a_flexible_rod_is_stable():
+    # The rigid gear's spring is set by the hub alone once the rod bends (effects.rigid_gear):
+    # with the whole link's inertia it was too stiff, and every link_flexibility screen diverged.
+    from mjjoint.assets.stability import check_model_stability
+    from mjjoint.identify.windows import _compile
+    flexible = Structure.create(("link_flexibility",), ArmSpec(), N)
+    check_model_stability(_compile(*flexible.model_params()))
+
+
+def test_parameters_left_on_a_bound_are_named_with_the_bound():
+    from types import SimpleNamespace
+
+    from mjjoint.diagnosis.loop import stand_ins
+    s = Structure.create(("coulomb_friction", "gravity"), ArmSpec(), N)
+    (fc,) = [p for p in s.params if p.name == "coulomb_friction.fc"]
+    (g,) = [p for p in s.params if p.name == "gravity.g"]
+    at = s.with_values({"coulomb_friction.fc": fc.hi, "gravity.g": g.lo})
+    result = SimpleNamespace(structure=at, on_bound=("coulomb_friction.fc", "gravity.g"))
+    assert stand_ins(result) == {"coulomb_friction.fc": "upper", "gravity.g": "lower"}
