@@ -95,7 +95,7 @@ def test_the_lab_arms_recordings_keep_the_catalogues_orders():
 
     import mjjoint
     from mjjoint.benchmark.cases import NOMINAL
-    from mjjoint.benchmark.recorder import record
+    from mjjoint.rehearse import record
     recs = [mjjoint.simulate(ex.sample(1000, 5)) for ex in (mjjoint.Chirp(), mjjoint.Multisine())]
     recs.append(SimpleNamespace(**record(NOMINAL, JointParams())))
     for rec in recs:

@@ -20,7 +20,9 @@ from mjjoint.cli import main
 from mjjoint.excitation import Multisine
 from mjjoint.identify.fit import fit
 from mjjoint.identify.structure import Structure
+from mjjoint.cli.fit import RESTARTS
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
+from mjjoint.problem import Inputs, load_problem
 from mjjoint.recordings import read_recording
 from mjjoint.sim import Simulator
 
@@ -79,7 +81,6 @@ def test_stacked_windows_predict_what_each_run_predicts(runs):
 
 
 def test_fit_of_two_files_is_the_fit_of_the_stacked_recordings(runs, tmp_path):
-    base = Structure.create(EFFECTS, NOMINAL, GEAR)
     args = ["--gear-ratio", str(GEAR), "--base", ",".join(EFFECTS), "--window-length", "0.1",
             "--lead-in", "0.2", "--max-iter", "3"]
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
@@ -87,7 +88,11 @@ def test_fit_of_two_files_is_the_fit_of_the_stacked_recordings(runs, tmp_path):
     got = json.loads((tmp_path / "fit" / "fit.json").read_text())["structure"]["parameters"]
     run = json.loads((tmp_path / "fit" / "run.json").read_text())
     assert run["arguments"]["recording"] == [str(p) for p in runs[:2]]
-    want = fit(Predictor(Measured.stack([measured(p) for p in runs[:2]]), DESIGN), base, max_iter=3).structure.values
+    # The same problem from Python: the two recordings stacked, started from their initial values.
+    problem = load_problem(list(runs[:2]), Inputs(gear_ratio=GEAR, base=EFFECTS, design=DESIGN))
+    np.testing.assert_array_equal(problem.predictor.m.q, Measured.stack([measured(p) for p in runs[:2]]).q)
+    assert problem.predictor.m.joins == Measured.stack([measured(p) for p in runs[:2]]).joins
+    want = fit(problem.predictor, problem.base, max_iter=3, restarts=RESTARTS).structure.values
     assert got == pytest.approx(want, rel=1e-9)
 
 

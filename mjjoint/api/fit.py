@@ -10,7 +10,7 @@ from ..recordings import MultiRecording, Recording
 from .problem import answer, joint_problems
 
 
-def fit(recording: Recording | MultiRecording | str | Path, *, max_iter: int = 25,
+def fit(recording: Recording | MultiRecording | str | Path, *, max_iter: int = 25, restarts: int = 2,
         progress: Callable[[int, float], None] | None = None, **inputs) -> FitResult | dict[int, FitResult]:
     """Fit the parameters of a starting structure to a recording by windowed prediction error.
 
@@ -21,6 +21,8 @@ def fit(recording: Recording | MultiRecording | str | Path, *, max_iter: int = 2
         recording: a ``Recording`` (arrays t, u, q, theta[, tau], each of shape (n,), SI units),
             a ``MultiRecording`` of several joints, or the path of a .csv/.npz/.mat recording.
         max_iter: Levenberg-Marquardt iterations of each phase, at least 1.
+        restarts: further starting points tried when the fit ends on a bound or far above the
+            noise floor (the recording's initial values, then seeded random ones), at least 0.
         progress: called as ``progress(iteration, cost)`` after each LM iteration.
         **inputs: the fields of ``mjjoint.problem.Inputs``: ``gear_ratio`` (required unless
             ``model`` gives it; a tuple gives one per joint), ``base`` (effect names, ``()`` for
@@ -42,5 +44,7 @@ def fit(recording: Recording | MultiRecording | str | Path, *, max_iter: int = 2
     """
     if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
         raise ValueError(f"max_iter={max_iter!r} must be an integer of at least 1")
-    return answer({j: fit_structure(p.predictor, p.base, max_iter=max_iter, progress=progress)
+    if isinstance(restarts, bool) or not isinstance(restarts, int) or restarts < 0:
+        raise ValueError(f"restarts={restarts!r} must be an integer of at least 0")
+    return answer({j: fit_structure(p.predictor, p.base, max_iter=max_iter, progress=progress, restarts=restarts)
                    for j, p in joint_problems(recording, inputs).items()})

@@ -14,7 +14,7 @@ from .errors import CliError
 from .options import Problem, add_problem_options, prepare, run_info
 
 DEFAULT_OUT = Path("out/fit")
-RESTARTS = 2  # fit --restarts default
+RESTARTS = 2  # fit --restarts default (mjjoint.fit's too)
 
 EPILOG = """\
 examples:

@@ -51,9 +51,9 @@ def plot_evidence(effect: str, cmp: Comparison, before: str, after: str, where: 
         # The play is a few 0.1 mrad inside loops spanning mrad: show it magnified too.
         width = parameters.get("backlash.width") if effect == "backlash" else None
         fig = _loops(cmp, (before, after), None if width is None else ZOOM_WIDTHS * width)
-    elif effect == "input_delay":
+    elif effect in ("input_delay", "sensor_skew"):  # a time shift: the residual's cross-correlation
         signal = evidence_signal(effect, where, cmp.signals, default_signal)
-        fig = _cross_correlation(cmp, (before, after), signal, parameters.get("input_delay.delay"))
+        fig = _cross_correlation(cmp, (before, after), signal, parameters.get(EFFECTS[effect].params[0].name))
     elif effect == "link_flexibility":
         signal = evidence_signal(effect, where, cmp.signals, default_signal)
         fig = _spectrum(cmp, (before, after), signal)
@@ -80,6 +80,8 @@ def condition_axis(effect: str, cmp: Comparison) -> tuple[np.ndarray, str]:
         return c["thetad"], f"link velocity theta' [{cmp.unit('rad/s')}]"
     if effect in MOTOR_FRICTION:
         return c["qd"], f"motor velocity q' [{cmp.unit('rad/s')}]"
+    if effect in ("torque_gain", "torque_offset") and "tau" in cmp.measured:  # a torque cell's error grows with tau
+        return cmp.measured["tau"], f"measured torque tau [{cmp.unit('N m')}]"
     raise ValueError(f"no evidence plot is defined for effect {effect!r}")
 
 
