@@ -21,10 +21,9 @@ from ..coupling.kernels import joint_catch_up, transmitted
 from ..coupling.layout import NSTATE
 from ..joint import JointParams
 from ..params import check
+from ..sensors import LINK_ENCODER_BITS, RESOLVER_BITS, Sensors, lsb, quantise  # noqa: F401 (re-exported)
 from ..sim import joint_indices
 
-RESOLVER_BITS = 15      # motor resolver (Sec. 4)
-LINK_ENCODER_BITS = 20  # output encoder (Sec. 4)
 
 
 @dataclass(frozen=True)
@@ -64,14 +63,6 @@ class LabProgram:
 
 
 @dataclass(frozen=True)
-class Sensors:
-    resolver_bits: int = RESOLVER_BITS
-    encoder_bits: int = LINK_ENCODER_BITS
-    torque_noise: float = 0.05   # [N m] rms, contactless torque cell
-    seed: int = 0
-
-
-@dataclass(frozen=True)
 class Controller:
     """Motor-side PD on quantised q, with a first-order velocity filter."""
 
@@ -79,16 +70,6 @@ class Controller:
     kd: float = 7.5e-3        # [N m s/rad] damping ratio ~0.7
     velocity_cutoff: float = 200.0   # [Hz]
     u_max: float = 1.3        # [N m] rated torque of the 400 W motor
-
-
-def lsb(bits: int) -> float:
-    """One count of a ``bits``-bit encoder per revolution [rad]."""
-    return 2 * math.pi / (1 << bits)
-
-
-def quantise(x: np.ndarray, bits: int) -> np.ndarray:
-    step = lsb(bits)
-    return np.round(x / step) * step
 
 
 def record(arm: ArmSpec, joint: JointParams, program: LabProgram = LabProgram(),

@@ -1,0 +1,59 @@
+"""After the designed experiment: which rival does the new recording support?
+
+Both rivals are refitted (every parameter, from their fits to the original recording) to the
+new recording by windowed prediction error (``identify.fit``), and compared on the windows the
+fits did not see. The rival with the lower held-out cost wins; the evidence is the relative
+cost difference and a one-sided Wilcoxon signed-rank test of the per-window differences (are
+the loser's held-out windows consistently worse, not just a few). The decision is only called
+``decisive`` when the test holds at ``max_p``; otherwise the winner is the better fit, no more.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import wilcoxon
+
+from ..identify.fit import FitResult, fit, window_costs
+from ..identify.windows import Measured, Predictor, WindowDesign
+from .rivals import Rival
+
+MAX_P = 0.05
+
+
+@dataclass
+class Decision:
+    winner: str
+    loser: str
+    cost_heldout: dict[str, float]
+    relative_gap: float      # (loser - winner) / loser held-out cost
+    p_value: float           # one-sided signed-rank test of per-window held-out differences
+    fits: dict[str, FitResult]
+
+    @property
+    def decisive(self) -> bool:
+        return self.p_value <= MAX_P
+
+    def as_dict(self) -> dict:
+        return {"winner": self.winner, "loser": self.loser, "decisive": self.decisive,
+                "cost_heldout": self.cost_heldout, "relative_gap": self.relative_gap,
+                "wilcoxon_p": self.p_value, "max_p": MAX_P,
+                "fits": {k: v.as_dict() for k, v in self.fits.items()}}
+
+
+def decide(rivals: tuple[Rival, Rival], recording, window: WindowDesign = WindowDesign(),
+           max_iter: int = 15, progress=None) -> Decision:
+    """Fit both ``rivals`` to ``recording`` (a ``Recording``) and name the one it supports."""
+    gear = rivals[0].structure.gear_ratio
+    predictor = Predictor(Measured.from_recording(recording, gear), window)
+    fits, costs = {}, {}
+    for r in rivals:
+        fits[r.effect] = fit(predictor, r.structure, max_iter=max_iter, progress=progress)
+        costs[r.effect] = window_costs(predictor, fits[r.effect].structure, predictor.test)
+    a, b = (r.effect for r in rivals)
+    winner, loser = (a, b) if costs[a].mean() <= costs[b].mean() else (b, a)
+    diff = costs[loser] - costs[winner]
+    p = float(wilcoxon(diff, alternative="greater").pvalue) if np.any(diff != 0) else 1.0
+    held = {k: float(v.mean()) for k, v in costs.items()}
+    gap = (held[loser] - held[winner]) / held[loser] if held[loser] > 0 else 0.0
+    return Decision(winner, loser, held, float(gap), p, fits)
