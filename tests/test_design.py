@@ -67,7 +67,7 @@ def pair_evaluator():
     a = Rival("input_offset", case.base.with_effect("input_offset", {"input_offset.offset": 0.012}))
     b = Rival("friction_asymmetry", case.base.with_effect("friction_asymmetry", {"friction_asymmetry.ratio": -0.4}))
     limits = Limits(max_torque=0.1, duration=3.0)
-    noise = {"q": 1e-4, "theta": 3e-6, "tau": 0.05}
+    noise = {"q": 1e-4, "delta": 3e-6, "tau": 0.05}
     return a, b, limits, noise
 
 
@@ -81,7 +81,7 @@ def test_the_criterion_is_zero_between_identical_rivals_and_scales_as_one_over_n
     ws = list(c1.windowed)
     doubled = {k: 2 * v for k, v in noise.items()}
     assert c1.score > 0
-    assert discrimination(ws, doubled, limits.signals, a.structure.gear_ratio) == pytest.approx(c1.score / 4, rel=1e-9)
+    assert discrimination(ws, doubled, limits.signals) == pytest.approx(c1.score / 4, rel=1e-9)
 
 
 def test_design_cli_refuses_bad_input_in_one_line(tmp_path, capsys):

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..design import Limits, Rival, SearchOptions, decide, design, noise_floor
+from ..design import Limits, Rival, SearchOptions, decide, design, prediction_floor
 from ..design.record import record
 from ..identify.fit import fit
 from ..identify.structure import Structure
@@ -93,11 +93,10 @@ def run_case(case: DesignCase, limits: Limits, options: SearchOptions, max_iter:
     effects = PAIRS[case.pair][0]
     fits = [fit(predictor, case.base.with_effect(e), max_iter=max_iter) for e in effects]
     rivals = tuple(Rival(e, f.structure, f.intervals) for e, f in zip(effects, fits))
-    m = predictor.m
-    noise = noise_floor({"q": m.q, "theta": m.theta, "tau": m.tau}, m.rate)
-    d = design(rivals, noise, limits, options)
+    floor = prediction_floor(predictor, [r.structure for r in rivals])
+    d = design(rivals, floor, limits, options)
     new = record(case.truth, d.best.u, RATE, Sensors(seed=case.seed + 100))
-    decision = decide(rivals, new, max_iter=max_iter)
+    decision = decide(rivals, new, floor, max_iter=max_iter)
     # The limits on the truth's own run of the designed input (the rivals' were checked in design).
     from ..design.limits import violations
     from ..sim import Simulator

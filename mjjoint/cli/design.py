@@ -15,8 +15,10 @@ import sys
 import time
 from pathlib import Path
 
+from ..assets import ArmSpec
 from ..identify.effects import EFFECTS
 from ..identify.structure import Structure
+from ..design.limits import PREDICTED
 from .errors import CliError
 from .fit import Problem, add_problem_options, effect_names, load_problem, read_input, run_info
 
@@ -47,13 +49,20 @@ def signal_list(text: str) -> tuple[str, ...]:
 
 
 def noise_map(text: str) -> dict[str, float]:
+    from ..design.limits import SIGNALS
     out = {}
     for item in text.split(","):
         key, _, value = item.partition("=")
         try:
-            out[key.strip()] = float(value)
+            std = float(value)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{item!r}: give SIGNAL=STD, e.g. q=1e-4,tau=0.05") from None
+            std = -1.0
+        if key.strip() not in SIGNALS or not std > 0:
+            raise argparse.ArgumentTypeError(f"{item!r}: give SIGNAL=STD with SIGNAL one of {','.join(SIGNALS)} "
+                                             "and STD > 0, e.g. q=1e-4,tau=0.05")
+        out[key.strip()] = std
+    if "q" not in out:
+        raise argparse.ArgumentTypeError(f"{text!r}: q's noise is needed (the deflection's includes it)")
     return out
 
 
@@ -86,7 +95,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     g.add_argument("--signals", type=signal_list, default=lim.signals, metavar="LIST",
                    help="signals the new recording will hold (default q,theta,tau)")
     g.add_argument("--noise", type=noise_map, metavar="MAP",
-                   help="noise std per signal, e.g. q=1e-4,theta=2e-6,tau=0.05 (default: estimated from REC)")
+                   help="noise std per signal, e.g. q=1e-4,theta=2e-6,tau=0.05 (default: the rivals' windowed "
+                        "prediction error on REC)")
     s = p.add_argument_group("search")
     s.add_argument("--starts", type=int, default=opt.starts, metavar="K",
                    help=f"quasi-random inputs tried per family (default {opt.starts})")
@@ -124,7 +134,8 @@ def limits_from_args(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..design.criterion import noise_floor
+    from ..design.criterion import predicted_noise, prediction_floor
+    from ..design.optimise import SearchOptions
     from ..design.rivals import Rival
     from ..identify.fit import fit
     from ..report.output import OutputDir
@@ -132,12 +143,11 @@ def run(args: argparse.Namespace) -> int:
     out = OutputDir(args.out)
     out.check()
     limits = limits_from_args(args)
-    from ..design.optimise import SearchOptions
     options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws)
     if args.max_iter < 1:
         raise CliError(f"--max-iter {args.max_iter} must be at least 1")
     problem = load_problem(args)
-    if not isinstance(problem, Problem) or problem.base.nominal.__class__.__name__ != "ArmSpec":
+    if not isinstance(problem, Problem) or not isinstance(problem.base.nominal, ArmSpec):
         raise CliError("design works on one elastic joint (--plant arm, a single-joint recording)")
     new = None if args.decide is None else read_input(argparse.Namespace(**{**vars(args), "recording": args.decide}),
                                                       problem.base.gear_ratio, args.k_m)
@@ -162,14 +172,15 @@ def run(args: argparse.Namespace) -> int:
         rivals.append(Rival(effect, result.structure, result.intervals))
     rivals = tuple(rivals)
     run_data = run_info("design", args, problem)
-    if new is not None:
-        return _decide(args, out, rivals, new, problem, run_data, start)
-    m = problem.predictor.m
-    noise = noise_floor({"q": m.q, "theta": m.theta, "tau": m.tau}, m.rate)
-    noise.update(args.noise or {})
-    missing = [s for s in limits.signals if s not in noise]
+    if args.noise is not None:
+        noise = predicted_noise(args.noise, base.gear_ratio)
+    else:
+        noise = prediction_floor(problem.predictor, [r.structure for r in rivals])
+    missing = [s for s in limits.signals if PREDICTED[s] not in noise]
     if missing:
         raise CliError(f"no noise floor for {','.join(missing)}: REC does not hold it; give --noise {missing[0]}=STD")
+    if new is not None:
+        return _decide(args, out, rivals, new, noise, problem, run_data, start)
     from ..design.export import write_design
     from ..design.optimise import design
     d = design(rivals, noise, limits, options)
@@ -183,10 +194,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _decide(args, out, rivals, new, problem, run_data, start) -> int:
+def _decide(args, out, rivals, new, noise, problem, run_data, start) -> int:
     from ..design.decide import decide
     from ..report.output import MARKER, write_json
-    decision = decide(rivals, new, problem.predictor.design, max_iter=args.max_iter)
+    decision = decide(rivals, new, noise, problem.predictor.design, max_iter=args.max_iter)
     run_data.update(seconds=round(time.perf_counter() - start, 3), new_recording=str(args.decide))
     data = decision.as_dict()
     verdict = (f"{decision.winner} (held-out cost {decision.cost_heldout[decision.winner]:.4g} against "

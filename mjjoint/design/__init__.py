@@ -5,11 +5,11 @@
 ``optimise`` (the search), ``export`` (files), ``record`` (simulated lab recordings),
 ``decide`` (which rival a new recording supports).
 """
-from .criterion import discrimination, noise_floor
+from .criterion import discrimination, prediction_floor, predicted_noise
 from .decide import Decision, decide
 from .limits import Limits
 from .optimise import Design, SearchOptions, design
 from .rivals import Rival
 
 __all__ = ["Decision", "Design", "Limits", "Rival", "SearchOptions", "decide", "design", "discrimination",
-           "noise_floor"]
+           "predicted_noise", "prediction_floor"]

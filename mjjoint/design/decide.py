@@ -2,7 +2,12 @@
 
 Both rivals are refitted (every parameter, from their fits to the original recording) to the
 new recording by windowed prediction error (``identify.fit``), and compared on the windows the
-fits did not see. The rival with the lower held-out cost wins; the evidence is the relative
+fits did not see. Each signal's residuals are weighted by the design's noise floor (1 / sigma_s,
+``criterion.prediction_floor``), not by the signal's spread as in a plain fit, so that fits and
+comparison weigh the signals as the criterion did: on the offset/asymmetry pair the deflection
+is predicted to the encoder's resolution (floor 2.2e-6 rad against a spread of ~1e-3 rad), and
+where the rivals part there, the spread weighting let the motor angle's start-velocity drift
+(floor 0.05 rad) drown it: held-out costs within 1.6 %, the wrong rival named. The rival with the lower held-out cost wins; the evidence is the relative
 cost difference and a one-sided Wilcoxon signed-rank test of the per-window differences (are
 the loser's held-out windows consistently worse, not just a few). The decision is only called
 ``decisive`` when the test holds at ``max_p``; otherwise the winner is the better fit, no more.
@@ -41,11 +46,16 @@ class Decision:
                 "fits": {k: v.as_dict() for k, v in self.fits.items()}}
 
 
-def decide(rivals: tuple[Rival, Rival], recording, window: WindowDesign = WindowDesign(),
+def decide(rivals: tuple[Rival, Rival], recording, floor: dict[str, float], window: WindowDesign = WindowDesign(),
            max_iter: int = 15, progress=None) -> Decision:
-    """Fit both ``rivals`` to ``recording`` (a ``Recording``) and name the one it supports."""
+    """Fit both ``rivals`` to ``recording`` (a ``Recording``) with each predicted signal's
+    residuals in units of ``floor`` (q, delta, tau), and name the rival it supports."""
     gear = rivals[0].structure.gear_ratio
     predictor = Predictor(Measured.from_recording(recording, gear), window)
+    missing = [s for s in predictor.signals if s not in floor]
+    if missing:
+        raise ValueError(f"no noise floor for {', '.join(missing)} (have {', '.join(floor)})")
+    predictor.scale = {s: float(floor[s]) for s in predictor.signals}
     fits, costs = {}, {}
     for r in rivals:
         fits[r.effect] = fit(predictor, r.structure, max_iter=max_iter, progress=progress)

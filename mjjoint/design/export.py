@@ -52,7 +52,7 @@ def separated(d: Design) -> dict[str, np.ndarray]:
     n = len(d.best.u)
     out = {s: np.zeros(n, bool) for s in d.limits.signals}
     for w in d.best.windowed:
-        sep = separation(w, d.noise, d.limits.signals, d.rivals[0].structure.gear_ratio)
+        sep = separation(w, d.noise, d.limits.signals)
         for s in d.limits.signals:
             out[s][w.samples[sep[s] > 1.0]] = True
     return out

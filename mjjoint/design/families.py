@@ -27,40 +27,33 @@ DWELL_RANGE = (0.05, 2.0)      # [s] time at each level of dwell_reverse
 REVERSAL_RANGE = (0.05, 3.0)   # [Hz] triangle frequency of slow_reversal
 
 
-@dataclass(frozen=True)
-class DwellReverse:
-    """offset + amplitude sgn(sin(pi t / dwell)): each level held ``dwell`` seconds."""
-
-    offset: float
-    amplitude: float
-    dwell: float
-
-    def __post_init__(self) -> None:
-        check("amplitude", self.amplitude, 0.0)
-        check("dwell", self.dwell, 0.0, lo_open=True)
-        check("offset", self.offset)
-
-    def sample(self, rate: float, duration: float) -> np.ndarray:
-        t = sample_times(rate, duration)
-        return self.offset + self.amplitude * np.where(np.floor(t / self.dwell) % 2 == 0, 1.0, -1.0)
+WAVES = ("square", "triangle")
 
 
 @dataclass(frozen=True)
-class SlowReversal:
-    """offset + amplitude tri(f t): a triangle of unit peak, reversing twice per period."""
+class OffsetWave:
+    """offset + amplitude w(t / period), w a unit square wave (each level held half a period,
+    then reversed; +1 first) or a unit triangle (rising from 0, reversing twice per period)."""
 
     offset: float
     amplitude: float
-    frequency: float
+    period: float
+    wave: str = "square"
 
     def __post_init__(self) -> None:
         check("amplitude", self.amplitude, 0.0)
-        check("frequency", self.frequency, 0.0, lo_open=True)
+        check("period", self.period, 0.0, lo_open=True)
         check("offset", self.offset)
+        if self.wave not in WAVES:
+            raise ValueError(f"wave={self.wave!r} is not a wave (allowed: {', '.join(WAVES)})")
 
     def sample(self, rate: float, duration: float) -> np.ndarray:
-        phase = (self.frequency * sample_times(rate, duration) + 0.25) % 1.0
-        return self.offset + self.amplitude * (1.0 - 4.0 * np.abs(phase - 0.5))
+        phase = (sample_times(rate, duration) / self.period) % 1.0
+        if self.wave == "square":
+            w = np.where(phase < 0.5, 1.0, -1.0)
+        else:  # 0 at phase 0, +1 at 1/4, -1 at 3/4
+            w = 1.0 - 4.0 * np.abs((phase + 0.25) % 1.0 - 0.5)
+        return self.offset + self.amplitude * w
 
 
 def _log_between(share: float, lo: float, hi: float) -> float:
@@ -96,17 +89,17 @@ def chirp(p, limits: Limits) -> Chirp:
                  f_end=_log_between(p[2], lo, hi), sweep="log")
 
 
-def dwell_reverse(p, limits: Limits) -> DwellReverse:
+def dwell_reverse(p, limits: Limits) -> OffsetWave:
     offset = _offset(p[1], limits)
-    return DwellReverse(offset=offset, amplitude=_amplitude(p[0], limits.max_torque - abs(offset)),
-                        dwell=_log_between(p[2], *DWELL_RANGE))
+    return OffsetWave(offset=offset, amplitude=_amplitude(p[0], limits.max_torque - abs(offset)),
+                      period=2 * _log_between(p[2], *DWELL_RANGE), wave="square")
 
 
-def slow_reversal(p, limits: Limits) -> SlowReversal:
+def slow_reversal(p, limits: Limits) -> OffsetWave:
     offset = _offset(p[1], limits)
     f_lo = max(REVERSAL_RANGE[0], 1.0 / limits.duration)
-    return SlowReversal(offset=offset, amplitude=_amplitude(p[0], limits.max_torque - abs(offset)),
-                        frequency=_log_between(p[2], f_lo, max(REVERSAL_RANGE[1], f_lo)))
+    return OffsetWave(offset=offset, amplitude=_amplitude(p[0], limits.max_torque - abs(offset)),
+                      period=1.0 / _log_between(p[2], f_lo, max(REVERSAL_RANGE[1], f_lo)), wave="triangle")
 
 
 # name -> (dimension, decoder from [0, 1]^k to an excitation with sample(rate, duration))

@@ -13,6 +13,9 @@ import numpy as np
 from ..params import check
 
 SIGNALS = ("q", "theta", "tau")
+# A recorded signal -> the windowed prediction it is compared as: theta as the deflection
+# delta = q / N - theta, as the fits do.
+PREDICTED = {"q": "q", "theta": "delta", "tau": "tau"}
 
 
 @dataclass(frozen=True)

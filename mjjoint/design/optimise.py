@@ -94,7 +94,6 @@ class Evaluator:
                  options: SearchOptions = SearchOptions(), window: WindowDesign = WindowDesign()):
         self.models = tuple(RivalModel(r, limits.rate, options.draws, options.seed) for r in rivals)
         self.noise, self.limits, self.window = noise, limits, window
-        self.gear_ratio = rivals[0].structure.gear_ratio
         self.evaluated: list[tuple[str, tuple[float, ...], float, float]] = []
 
     def input(self, family: str, point, excitation, u: np.ndarray) -> Candidate:
@@ -105,7 +104,7 @@ class Evaluator:
         else:
             use = max(usage(tr, self.limits) for tr in traces)
             ws = tuple(windowed(self.models, tr, k, self.window) for k, tr in enumerate(traces))
-            score = discrimination(list(ws), self.noise, self.limits.signals, self.gear_ratio)
+            score = discrimination(list(ws), self.noise, self.limits.signals)
             cand = Candidate(family, tuple(point), excitation, u, score, use, traces, ws)
         self.evaluated.append((family, cand.point, cand.score, cand.usage))
         return cand

@@ -1,10 +1,11 @@
 """Rivals' responses to a candidate input, as the decision will see them.
 
-The decision (``design.decide``) scores rivals by windowed prediction (``identify.windows``):
-each 0.25 s window starts from the measured state and is predicted open loop. So the design
-scores them the same way: each rival's fitted model is run under the input (the run is also
-what the limits are checked on), and that run is taken as the recording in whose windows both
-rivals, and their parameter draws, are predicted (``Windowed``). A free-run difference would
+The decision (``design.decide``) refits both rivals to the new recording and scores them by
+windowed prediction (``identify.windows``): each 0.25 s window starts from the measured state
+and is predicted open loop. So the design scores them the same way: each rival's fitted model
+is run under the input (the run is also what the limits are checked on), and that run is taken
+as the recording in whose windows both rivals, their parameter draws, and the other rival with
+each parameter stepped (its sensitivities, for the refit) are predicted (``Windowed``). A free-run difference would
 count drift that the windows never see: on the offset/asymmetry pair the free runs parted by
 tens of thousands of nats under inputs whose recordings the windowed fits could not tell apart.
 
@@ -21,6 +22,13 @@ import numpy as np
 from ..identify.windows import Measured, Predictor, WindowDesign
 from ..sim import Simulator, Trace
 from .rivals import Rival
+
+
+# Parameter steps of the sensitivities (optimiser coordinates): log parameters by FD_LOG (1 %),
+# linear ones by FD_LINEAR of their range; small enough for a linear response, large enough that
+# the windowed predictions (float64, ~1e-12 relative) resolve them.
+FD_LOG = 0.01
+FD_LINEAR = 1e-3
 
 
 class Diverged(ValueError):
@@ -51,28 +59,52 @@ class RivalModel:
 @dataclass
 class Windowed:
     """Both rivals' windowed predictions in the run of rival ``truth`` (cost samples only, as
-    windows x samples per signal): each fitted model's, and the variance of its draws' about it;
-    ``samples``: the run's sample index of each."""
+    windows x samples per signal): each fitted model's, the variance of its draws' about it,
+    and the other rival's sensitivities (one prediction per parameter, stepped by ``steps`` in
+    the optimiser's coordinates); ``samples``: the run's sample index of each."""
 
     truth: int
     samples: np.ndarray
     mean: tuple[dict[str, np.ndarray], dict[str, np.ndarray]]
     var: tuple[dict[str, np.ndarray], dict[str, np.ndarray]]
+    stepped: list[dict[str, np.ndarray]]
+    steps: np.ndarray
+
+
+def sensitivity_steps(structure) -> tuple[list, np.ndarray]:
+    """Finite-difference steps of every parameter: 1 % of a log parameter, 1e-3 of a linear one's
+    range, taken inwards at a bound. Returns (stepped structures, signed steps)."""
+    x = structure.vector()
+    lo, hi = structure.bounds()
+    out, steps = [], []
+    for j, p in enumerate(structure.params):
+        h = FD_LOG if p.log else FD_LINEAR * (hi[j] - lo[j])
+        h = h if x[j] + h <= hi[j] else -h
+        y = x.copy()
+        y[j] += h
+        out.append(structure.from_vector(y))
+        steps.append(h)
+    return out, np.asarray(steps)
 
 
 def windowed(models: tuple[RivalModel, RivalModel], trace: Trace, truth: int, window: WindowDesign) -> Windowed:
-    """Predict both rivals (and their draws) in the windows of ``trace``, rival ``truth``'s run."""
+    """Predict both rivals, their draws and the other rival's parameter steps in the windows of
+    ``trace``, rival ``truth``'s run: the predictions a refit to that recording starts from."""
     predictor = Predictor(Measured.from_recording(trace, trace.gear_ratio), window, nthread=1)
+    other = models[1 - truth].rival.structure
+    stepped, steps = sensitivity_steps(other)
     groups = [[m.rival.structure, *m.draws] for m in models]
-    preds = predictor.predict([s for g in groups for s in g])
-    cols = predictor.cols
+    preds = predictor.predict([s for g in groups for s in g] + stepped)
+    cols, keep = predictor.cols, predictor.signals
+    pick = lambda p: {s: p[s][:, cols] for s in keep}  # noqa: E731
     means, vars_ = [], []
     k = 0
     for g in groups:
-        own = {s: p[:, cols] for s, p in preds[k].items() if s in predictor.signals}
-        drawn = preds[k + 1:k + len(g)]
+        own = pick(preds[k])
+        drawn = [pick(p) for p in preds[k + 1:k + len(g)]]
         k += len(g)
         means.append(own)
-        vars_.append({s: (np.nanmean([(d[s][:, cols] - own[s]) ** 2 for d in drawn], axis=0) if drawn
-                          else np.zeros_like(own[s])) for s in own})
-    return Windowed(truth, predictor.samples[:, cols], tuple(means), tuple(vars_))
+        vars_.append({s: (np.nanmean([(d[s] - own[s]) ** 2 for d in drawn], axis=0) if drawn
+                          else np.zeros_like(own[s])) for s in keep})
+    return Windowed(truth, predictor.samples[:, cols], tuple(means), tuple(vars_),
+                    [pick(p) for p in preds[k:]], steps)

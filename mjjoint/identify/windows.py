@@ -125,8 +125,16 @@ class Measured:
 
     @cached_property
     def q_noise(self) -> float:
-        """Measurement noise (std) of q (``noise_std``)."""
-        return noise_std(self.q, self.rate)
+        """Measurement noise (std) of q: robust spread of q about its Savitzky-Golay smoothing.
+
+        The median absolute deviation ignores the few samples where the smoothing misses fast
+        motion; the factor undoes the share of the noise the smoothing itself follows. On a
+        15-bit resolver it returns the quantisation step / sqrt(12) within 10 %.
+        """
+        win = _sg_window(1.0 / self.rate)
+        r = self.q - savgol_filter(self.q, win, VELOCITY_ORDER)
+        follow = savgol_coeffs(win, VELOCITY_ORDER)[win // 2]
+        return float(1.4826 * np.median(np.abs(r - np.median(r))) / np.sqrt(1.0 - follow))
 
     @cached_property
     def q_path(self) -> np.ndarray:
@@ -197,19 +205,6 @@ def _window_starts(total: int, n: int, u: np.ndarray, half: int, max_shift: int,
             starts.append(s)
             s += n
     return np.array(starts, dtype=int)
-
-
-def noise_std(x: np.ndarray, rate: float) -> float:
-    """Measurement noise (std) of a signal: its robust spread about its Savitzky-Golay smoothing.
-
-    The median absolute deviation ignores the few samples where the smoothing misses fast
-    motion; the factor undoes the share of the noise the smoothing itself follows. On a 15-bit
-    resolver it returns the quantisation step / sqrt(12) within 10 %.
-    """
-    win = _sg_window(1.0 / rate)
-    r = x - savgol_filter(x, win, VELOCITY_ORDER)
-    follow = savgol_coeffs(win, VELOCITY_ORDER)[win // 2]
-    return float(1.4826 * np.median(np.abs(r - np.median(r))) / np.sqrt(1.0 - follow))
 
 
 def _sg_window(dt: float) -> int:
