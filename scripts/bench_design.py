@@ -48,6 +48,10 @@ def main() -> None:
                 r = run_case(make_design_case(pair, side, seed), LIMITS, options, max_iter=args.max_iter)
                 results.append(r)
                 costs = list(r["original_heldout"].values())
+                if r["family"] is None:
+                    print(f"| {pair} | {r['truth']} | {seed} | {max(costs) / min(costs) - 1:.1%} | none within "
+                          f"the limits | | | | | (failed) | |", flush=True)
+                    continue
                 chirp = f"{r['D_chirp']:.3g}" + ("" if r["chirp_feasible"] else " (over limits)")
                 print(f"| {pair} | {r['truth']} | {seed} | {max(costs) / min(costs) - 1:.1%} | {r['family']} | "
                       f"{r['D']:.3g} | {chirp} | {r['usage']:.2f} | {'yes' if not r['truth_violations'] else 'NO'} | "
@@ -55,12 +59,14 @@ def main() -> None:
     print(f"\n{time.perf_counter() - start:.0f} s in all")
     for pair in args.pairs.split(","):
         rs = [r for r in results if r["pair"] == pair]
-        feasible = [r for r in rs if r["chirp_feasible"]]
+        designed = [r for r in rs if r["family"] is not None]
+        feasible = [r for r in designed if r["chirp_feasible"]]
         print(f"{pair}: named correctly {sum(r['correct'] for r in rs)}/{len(rs)}, decisive "
               f"{sum(r['correct'] and r['decisive'] for r in rs)}/{len(rs)}; design beats the chirp "
               f"{sum(r['D'] > r['D_chirp'] for r in feasible)}/{len(feasible)} where the chirp fits the limits "
-              f"({len(rs) - len(feasible)} where it cannot); limits exceeded "
-              f"{sum(r['usage'] > 1 or bool(r['truth_violations']) for r in rs)}/{len(rs)}")
+              f"({len(designed) - len(feasible)} where it cannot); no design within the limits "
+              f"{len(rs) - len(designed)}/{len(rs)}; limits exceeded "
+              f"{sum(r['usage'] > 1 or bool(r['truth_violations']) for r in designed)}/{len(designed)}")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as f:
             json.dump(results, f, indent=1)

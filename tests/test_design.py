@@ -138,3 +138,24 @@ def test_design_cli_end_to_end_writes_a_runnable_experiment_and_decides(tmp_path
     assert main([*args, "--decide", str(new), "--out", str(tmp_path / "decide")]) == 0
     decision = json.loads((tmp_path / "decide" / "decision.json").read_text())
     assert decision["winner"] == "friction_asymmetry"
+
+
+def test_design_writes_the_experiment_the_simulator_reads_and_never_one_past_a_limit(pair_evaluator, tmp_path):
+    from mjjoint.design import design
+    from mjjoint.design.export import separated, write_design
+    from mjjoint.design.limits import violations
+    from mjjoint.report.output import OutputDir
+    a, b, limits, noise = pair_evaluator
+    d = design((a, b), noise, limits, SearchOptions(starts=2, refine=2, draws=0, families=("slow_reversal",)))
+    assert all(not violations(tr, limits, "rival") for tr in d.best.traces)
+    assert all(u <= 1.0 for f, p, s, u in d.evaluated if s == d.best.score and f == d.best.family)
+    out = OutputDir(tmp_path / "design")
+    with out.staged() as folder:
+        data = write_design(folder, d, {"command": "design"})
+    assert data["discrimination_nats"] == d.best.score > 0
+    exp = FromFile(out.path / "experiment.csv")
+    assert np.array_equal(exp.sample(limits.rate, limits.duration), d.best.u)
+    marks = separated(d)
+    assert all(m.shape == d.best.u.shape for m in marks.values()) and any(m.any() for m in marks.values())
+    assert json.loads((out.path / "run.json").read_text())["files"] == sorted(
+        ["design.json", "experiment.csv", "index.html", "responses.png", "responses.rrd", "run.json"])

@@ -94,16 +94,20 @@ def run_case(case: DesignCase, limits: Limits, options: SearchOptions, max_iter:
     fits = [fit(predictor, case.base.with_effect(e), max_iter=max_iter) for e in effects]
     rivals = tuple(Rival(e, f.structure, f.intervals) for e, f in zip(effects, fits))
     floor = prediction_floor(predictor, [r.structure for r in rivals])
-    d = design(rivals, floor, limits, options)
+    found = {"pair": case.pair, "truth": case.truth_effect, "seed": case.seed,
+             "original_heldout": {e: f.cost_test for e, f in zip(effects, fits)}}
+    try:
+        d = design(rivals, floor, limits, options)
+    except ValueError as exc:  # no input within the limits: a failed case, not a crash
+        return {**found, "family": None, "error": str(exc), "correct": False, "decisive": False,
+                "seconds": time.perf_counter() - start}
     new = record(case.truth, d.best.u, RATE, Sensors(seed=case.seed + 100))
     decision = decide(rivals, new, floor, max_iter=max_iter)
     # The limits on the truth's own run of the designed input (the rivals' were checked in design).
     from ..design.limits import violations
     from ..sim import Simulator
     truth_run = Simulator(case.truth.compile(), sample_rate=RATE).run(d.best.u)
-    return {"pair": case.pair, "truth": case.truth_effect, "seed": case.seed,
-            "original_heldout": {e: f.cost_test for e, f in zip(effects, fits)},
-            "family": d.best.family, "D": d.best.score, "D_chirp": d.reference.score,
+    return {**found, "family": d.best.family, "D": d.best.score, "D_chirp": d.reference.score,
             "chirp_usage": d.reference.usage, "chirp_feasible": d.reference.feasible, "usage": d.best.usage,
             "truth_violations": violations(truth_run, limits, "truth"),
             "winner": decision.winner, "correct": decision.winner == case.truth_effect,

@@ -53,8 +53,11 @@ def separated(d: Design) -> dict[str, np.ndarray]:
     out = {s: np.zeros(n, bool) for s in d.limits.signals}
     for w in d.best.windowed:
         sep = separation(w, d.noise, d.limits.signals)
+        step = int(w.samples[0, 1] - w.samples[0, 0])  # cost samples are decimated: fill between
         for s in d.limits.signals:
-            out[s][w.samples[sep[s] > 1.0]] = True
+            at = w.samples[sep[s] > 1.0]
+            for k in range(step):
+                out[s][np.minimum(at + k, n - 1)] = True
     return out
 
 
