@@ -146,7 +146,7 @@ def test_design_writes_the_experiment_the_simulator_reads_and_never_one_past_a_l
     from mjjoint.design.limits import violations
     from mjjoint.report.output import OutputDir
     a, b, limits, noise = pair_evaluator
-    d = design((a, b), noise, limits, SearchOptions(starts=2, refine=2, draws=0, families=("slow_reversal",)))
+    d = design((a, b), noise, limits, SearchOptions(starts=2, refine=0, draws=0, families=("slow_reversal",)))
     assert all(not violations(tr, limits, "rival") for tr in d.best.traces)
     assert all(u <= 1.0 for f, p, s, u in d.evaluated if s == d.best.score and f == d.best.family)
     out = OutputDir(tmp_path / "design")
@@ -159,3 +159,17 @@ def test_design_writes_the_experiment_the_simulator_reads_and_never_one_past_a_l
     assert all(m.shape == d.best.u.shape for m in marks.values()) and any(m.any() for m in marks.values())
     assert json.loads((out.path / "run.json").read_text())["files"] == sorted(
         ["design.json", "experiment.csv", "index.html", "responses.png", "responses.rrd", "run.json"])
+
+
+def test_rivals_from_a_diagnosis_are_its_named_effect_and_first_indistinguishable_one(tmp_path):
+    from mjjoint.assets import ArmSpec
+    from mjjoint.cli.design import rivals_from_diagnosis
+    final = {"effects": ["coulomb_friction", "linear_stiffness", "input_offset"],
+             "parameters": {"coulomb_friction.fc": 0.04, "linear_stiffness.k1": 9000.0, "input_offset.offset": 0.01},
+             "settings": {}}
+    steps = [{"effect": "input_offset", "indistinguishable_from": ["friction_asymmetry", "viscous_asymmetry"]}]
+    (tmp_path / "diagnosis.json").write_text(json.dumps({"final_model": final, "steps": steps}))
+    base, pair = rivals_from_diagnosis(tmp_path, ArmSpec(segments=0), 160.0)
+    assert pair == ("input_offset", "friction_asymmetry")
+    assert base.effects == ("coulomb_friction", "linear_stiffness")
+    assert base.values["coulomb_friction.fc"] == 0.04 and "input_offset.offset" not in base.values

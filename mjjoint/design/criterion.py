@@ -62,7 +62,9 @@ def separation(w: Windowed, floor: dict[str, float], signals) -> dict[str, np.nd
     d = np.concatenate([((w.mean[other][s] - w.mean[truth][s]) / root[s]).ravel() for s in names])
     jac = np.stack([np.concatenate([((p[s] - w.mean[other][s]) / root[s]).ravel() for s in names]) / h
                     for p, h in zip(w.stepped, w.steps)], axis=1)
-    ok = np.isfinite(d) & np.all(np.isfinite(jac), axis=1)
+    # A parameter whose step makes the rival unstable (NaN predictions) gives no direction.
+    jac = jac[:, np.all(np.isfinite(jac[np.isfinite(d)]), axis=0)]
+    ok = np.isfinite(d)
     e = np.zeros_like(d)
     e[ok] = d[ok] - _projection(jac[ok], d[ok])
     sizes = np.cumsum([0] + [w.mean[truth][s].size for s in names])
