@@ -160,8 +160,11 @@ def run(args: argparse.Namespace) -> int:
         base = problem.base
     structures = []
     for effect in pair:
+        if effect in base.effects:
+            raise CliError(f"rival {effect} is already in the starting model ({', '.join(base.effects)}); "
+                           "the rivals are what the base lacks")
         try:
-            structures.append(base if effect in base.effects else base.with_effect(effect))
+            structures.append(base.with_effect(effect))
         except ValueError as exc:
             raise CliError(f"--rivals: {exc}") from None
     start = time.perf_counter()
