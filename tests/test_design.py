@@ -92,7 +92,9 @@ def test_design_cli_refuses_bad_input_in_one_line(tmp_path, capsys):
              (["--rivals", "backlash,transmission_hysteresis", "--max-torque", "-1"], "max_torque=-1"),
              (["--rivals", "backlash,transmission_hysteresis", "--signals", "q,current"], "comma list of q,theta,tau"),
              (["--diagnosis", str(tmp_path)], "no diagnosis.json"),
-             (["--base", "linear_stiffness,backlash", "--rivals", "backlash,transmission_hysteresis"],
+             (["--rivals", "backlash,transmission_hysteresis", "--base", "linear_stiffness"], "no noise floor for tau"),
+             (["--base", "linear_stiffness,backlash", "--rivals", "backlash,transmission_hysteresis",
+               "--signals", "q,theta"],
               "already in the starting model")]
     for extra, message in cases:
         code = main(["design", str(rec), "--gear-ratio", "160", "--out", str(tmp_path / "out"), *extra])

@@ -158,6 +158,12 @@ def run(args: argparse.Namespace) -> int:
         if len(pair) != 2:
             raise CliError(f"--rivals {args.rivals}: name exactly two effects")
         base = problem.base
+    # Refused before any fit: a signal to design for with no floor to weigh it by.
+    have = set(problem.predictor.signals) if args.noise is None else set(predicted_noise(args.noise, base.gear_ratio))
+    missing = [s for s in limits.signals if PREDICTED[s] not in have]
+    if missing:
+        raise CliError(f"--signals {','.join(limits.signals)}: no noise floor for {','.join(missing)} "
+                       f"(REC does not hold it; give --noise {missing[0]}=STD or leave it out of --signals)")
     structures = []
     for effect in pair:
         if effect in base.effects:
@@ -179,9 +185,6 @@ def run(args: argparse.Namespace) -> int:
         noise = predicted_noise(args.noise, base.gear_ratio)
     else:
         noise = prediction_floor(problem.predictor, [r.structure for r in rivals])
-    missing = [s for s in limits.signals if PREDICTED[s] not in noise]
-    if missing:
-        raise CliError(f"no noise floor for {','.join(missing)}: REC does not hold it; give --noise {missing[0]}=STD")
     if new is not None:
         return _decide(args, out, rivals, new, noise, problem, run_data, start)
     from ..design.export import write_design
