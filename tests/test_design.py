@@ -74,7 +74,8 @@ def pair_evaluator():
 def test_the_criterion_is_zero_between_identical_rivals_and_scales_as_one_over_noise_variance(pair_evaluator):
     a, b, limits, noise = pair_evaluator
     opts = SearchOptions(draws=0)
-    same = Evaluator((a, Rival("input_offset", a.structure)), noise, limits, opts).point("dwell_reverse", [0.6, 0.5, 0.4])
+    twin = Rival("input_offset", a.structure)
+    same = Evaluator((a, twin), noise, limits, opts).point("dwell_reverse", [0.6, 0.5, 0.4])
     assert same.score == 0.0
     ev = Evaluator((a, b), noise, limits, opts)
     c1 = ev.point("dwell_reverse", [0.6, 0.5, 0.4])
@@ -124,7 +125,8 @@ def test_design_cli_end_to_end_writes_a_runnable_experiment_and_decides(tmp_path
     write_recording(old, record(case.truth, case.original, 1000.0))
     base = ",".join(case.base.effects)
     out = tmp_path / "design"
-    args = ["design", str(old), "--gear-ratio", "160", "--base", base, "--rivals", ",".join(PAIRS["offset_asymmetry"][0]),
+    rivals = ",".join(PAIRS["offset_asymmetry"][0])
+    args = ["design", str(old), "--gear-ratio", "160", "--base", base, "--rivals", rivals,
             "--duration", "6", "--max-speed", "80", "--angle-range", "1", "--starts", "2", "--refine", "2",
             "--draws", "2", "--max-iter", "8"]
     assert main([*args, "--out", str(out)]) == 0

@@ -9,9 +9,9 @@ expectation
 
 when A is true. The predictions are the windowed ones the decision compares
 (``response.windowed``), in A's run for D_A and in B's for D_B; D is the smaller: the
-experiment must separate the rivals whichever is true (docs/design-experiments.md). D in nats: D = 3 makes the true rival 20 times as likely.
-Where the rivals differ by less than their combined spread, a sample counts little however
-large the difference.
+experiment must separate the rivals whichever is true (docs/design-experiments.md). D in
+nats: D = 3 makes the true rival 20 times as likely. Where the rivals differ by less than
+their combined spread, a sample counts little however large the difference.
 
 The decision refits B to the new recording, so y_B is B after that refit, linearised: the
 difference left once B's parameter sensitivities (whitened like the difference) have taken out

@@ -4,13 +4,14 @@ Both rivals are refitted (every parameter, from their fits to the original recor
 new recording by windowed prediction error (``identify.fit``), and compared on the windows the
 fits did not see. Each signal's residuals are weighted by the design's noise floor (1 / sigma_s,
 ``criterion.prediction_floor``), not by the signal's spread as in a plain fit, so that fits and
-comparison weigh the signals as the criterion did: on the offset/asymmetry pair the deflection
-is predicted to the encoder's resolution (floor 2.2e-6 rad against a spread of ~1e-3 rad), and
-where the rivals part there, the spread weighting let the motor angle's start-velocity drift
-(floor 0.05 rad) drown it: held-out costs within 1.6 %, the wrong rival named. The rival with the lower held-out cost wins; the evidence is the relative
-cost difference and a one-sided Wilcoxon signed-rank test of the per-window differences (are
-the loser's held-out windows consistently worse, not just a few). The decision is only called
-``decisive`` when the test holds at ``max_p``; otherwise the winner is the better fit, no more.
+comparison weigh the signals as the criterion did (the deflection is predicted to the
+encoder's resolution, 2.2e-6 rad on the offset/asymmetry pair against a spread of ~1e-3 rad,
+the motor angle to its start-velocity drift, 0.05 rad).
+
+The rival with the lower held-out cost wins; the evidence is the relative cost difference and
+a one-sided Wilcoxon signed-rank test of the per-window differences (are the loser's held-out
+windows consistently worse, not just a few). The decision is only called ``decisive`` when the
+test holds at ``max_p``; otherwise the winner is the better fit, no more.
 """
 from __future__ import annotations
 

@@ -89,7 +89,8 @@ def write_rrd(d: Design, path: Path) -> Path:
     """Both rivals' responses and the separation per signal on one ``sim_time`` line."""
     best = d.best
     sep = separated(d)
-    views = [rrb.TimeSeriesView(name=s, origin="/", contents=[f"/{r.effect}/{s}" for r in d.rivals] + [f"/separation/{s}"])
+    views = [rrb.TimeSeriesView(name=s, origin="/",
+                                contents=[f"/{r.effect}/{s}" for r in d.rivals] + [f"/separation/{s}"])
              for s in d.limits.signals]
     rec = rr.RecordingStream(APP_ID)
     rec.set_sinks(rr.FileSink(str(path)), default_blueprint=rrb.Blueprint(rrb.Vertical(*views)))
