@@ -179,3 +179,15 @@ def test_rivals_from_a_diagnosis_are_its_named_effect_and_first_indistinguishabl
     assert pair == ("input_offset", "friction_asymmetry")
     assert base.effects == ("coulomb_friction", "linear_stiffness")
     assert base.values["coulomb_friction.fc"] == 0.04 and "input_offset.offset" not in base.values
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="D is not calibrated: 9 of 12 draws named (docs/design-experiments.md)")
+def test_benchmark_names_the_true_effect_in_nine_tenths_of_draws_within_limits():
+    """The acceptance benchmark (scripts/bench_design.py, seeds 0-1): >= 90 % named, limits kept."""
+    limits = Limits(max_torque=0.2, max_speed=80.0, angle_range=1.0, duration=8.0)
+    options = SearchOptions(starts=4, refine=4, draws=2)
+    results = [run_case(make_design_case(pair, side, seed), limits, options, max_iter=8)
+               for pair in PAIRS for seed in (0, 1) for side in (0, 1)]
+    assert all(not r.get("truth_violations") and r.get("usage", 0) <= 1 for r in results)
+    assert sum(r["correct"] for r in results) >= 0.9 * len(results)
