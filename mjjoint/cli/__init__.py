@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 from .errors import PROG, ArgumentParser, CliError, guarded
 
-COMMANDS = ("simulate", "fit", "diagnose")
+COMMANDS = ("simulate", "fit", "diagnose", "design")
 
 __all__ = ["COMMANDS", "CliError", "build_parser", "main"]
 

@@ -1,0 +1,115 @@
+"""Input families an experiment is searched in, each a map from [0, 1]^k to a torque programme.
+
+Every family scales its programme so that |u| <= ``Limits.max_torque`` by construction; the
+coordinates are shares of the limits (amplitude, offset) and log-spaced positions in the
+frequency or time range the record length and rate allow, so one optimiser serves all.
+
+* ``multisine``: amplitude, lowest line, band width (``excitation.Multisine``, 16 lines).
+* ``chirp``: amplitude, start and end frequency of a log sweep (``excitation.Chirp``).
+* ``dwell_reverse``: a constant offset plus a square wave that dwells at each level and
+  reverses: held deflections of either sign, where play and hysteresis differ most.
+* ``slow_reversal``: a constant offset plus a slow triangle: quasi-static reversals.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..excitation import Chirp, Multisine, sample_times
+from ..params import check
+from .limits import Limits
+
+MIN_SHARE = 0.1      # smallest amplitude share of max_torque a family uses
+MULTISINE_LINES = 16
+DWELL_RANGE = (0.05, 2.0)      # [s] time at each level of dwell_reverse
+REVERSAL_RANGE = (0.05, 3.0)   # [Hz] triangle frequency of slow_reversal
+
+
+WAVES = ("square", "triangle")
+
+
+@dataclass(frozen=True)
+class OffsetWave:
+    """offset + amplitude w(t / period), w a unit square wave (each level held half a period,
+    then reversed; +1 first) or a unit triangle (rising from 0, reversing twice per period)."""
+
+    offset: float
+    amplitude: float
+    period: float
+    wave: str = "square"
+
+    def __post_init__(self) -> None:
+        check("amplitude", self.amplitude, 0.0)
+        check("period", self.period, 0.0, lo_open=True)
+        check("offset", self.offset)
+        if self.wave not in WAVES:
+            raise ValueError(f"wave={self.wave!r} is not a wave (allowed: {', '.join(WAVES)})")
+
+    def sample(self, rate: float, duration: float) -> np.ndarray:
+        phase = (sample_times(rate, duration) / self.period) % 1.0
+        if self.wave == "square":
+            w = np.where(phase < 0.5, 1.0, -1.0)
+        else:  # 0 at phase 0, +1 at 1/4, -1 at 3/4
+            w = 1.0 - 4.0 * np.abs((phase + 0.25) % 1.0 - 0.5)
+        return self.offset + self.amplitude * w
+
+
+def _log_between(share: float, lo: float, hi: float) -> float:
+    return float(math.exp(math.log(lo) + float(np.clip(share, 0, 1)) * (math.log(hi) - math.log(lo))))
+
+
+def band(limits: Limits) -> tuple[float, float]:
+    """The frequency range the search uses [Hz]: two periods in the record up to a tenth of the
+    rate (and 40 Hz: the shipped joint's transmission modes lie below it)."""
+    return max(2.0 / limits.duration, 0.1), min(0.1 * limits.rate, 40.0)
+
+
+def _amplitude(share: float, room: float) -> float:
+    return room * (MIN_SHARE + (1 - MIN_SHARE) * float(np.clip(share, 0, 1)))
+
+
+def _offset(share: float, limits: Limits) -> float:
+    return 0.9 * limits.max_torque * (2 * float(np.clip(share, 0, 1)) - 1)
+
+
+def multisine(p, limits: Limits) -> Multisine:
+    lo, hi = band(limits)
+    f_min = _log_between(p[1], lo, hi / 2)
+    f_max = _log_between(p[2], f_min * 1.5, hi)
+    lines = math.floor(f_max * limits.duration + 1e-9) - math.ceil(f_min * limits.duration - 1e-9) + 1
+    return Multisine(amplitude=_amplitude(p[0], limits.max_torque), f_min=f_min, f_max=f_max,
+                     n=max(1, min(MULTISINE_LINES, lines)))
+
+
+def chirp(p, limits: Limits) -> Chirp:
+    lo, hi = band(limits)
+    return Chirp(amplitude=_amplitude(p[0], limits.max_torque), f_start=_log_between(p[1], lo, hi),
+                 f_end=_log_between(p[2], lo, hi), sweep="log")
+
+
+def dwell_reverse(p, limits: Limits) -> OffsetWave:
+    offset = _offset(p[1], limits)
+    return OffsetWave(offset=offset, amplitude=_amplitude(p[0], limits.max_torque - abs(offset)),
+                      period=2 * _log_between(p[2], *DWELL_RANGE), wave="square")
+
+
+def slow_reversal(p, limits: Limits) -> OffsetWave:
+    offset = _offset(p[1], limits)
+    f_lo = max(REVERSAL_RANGE[0], 1.0 / limits.duration)
+    return OffsetWave(offset=offset, amplitude=_amplitude(p[0], limits.max_torque - abs(offset)),
+                      period=1.0 / _log_between(p[2], f_lo, max(REVERSAL_RANGE[1], f_lo)), wave="triangle")
+
+
+# name -> (dimension, decoder from [0, 1]^k to an excitation with sample(rate, duration))
+FAMILIES = {"multisine": (3, multisine), "chirp": (3, chirp), "dwell_reverse": (3, dwell_reverse),
+            "slow_reversal": (3, slow_reversal)}
+
+
+def programme(family: str, p, limits: Limits):
+    """The excitation of ``family`` at coordinates ``p``, and its torque samples."""
+    if family not in FAMILIES:
+        raise ValueError(f"family={family!r} is not an input family (allowed: {', '.join(FAMILIES)})")
+    excitation = FAMILIES[family][1](np.asarray(p, float), limits)
+    return excitation, excitation.sample(limits.rate, limits.duration)

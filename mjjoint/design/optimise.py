@@ -1,0 +1,189 @@
+"""Search the input families for the experiment that best separates two rivals, within limits.
+
+Deterministic and frugal: each family is sampled at a few scrambled-Sobol points of its
+[0, 1]^k coordinates (fixed seed), and the best feasible point overall is refined by a short
+Nelder-Mead run (scipy). Each evaluation simulates both rivals and their parameter draws under
+the candidate input. An input whose run (either rival's fitted model) exceeds the speed or
+angle limit is infeasible: it scores below every feasible one, by how far it overshoots, so the
+search is pulled back inside; one that makes a rival diverge scores worst. The winner is
+checked once more on both rivals' runs (``limits.violations``) before it is returned.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize
+from scipy.stats import qmc
+
+from ..excitation import Chirp
+from ..identify.windows import WindowDesign
+from ..sim import Trace
+from .criterion import discrimination
+from .families import FAMILIES, programme
+from .limits import Limits, usage, violations
+from .response import Diverged, RivalModel, Windowed, windowed
+from .rivals import Rival
+
+_WORST = 1e9  # objective of an input under which a rival diverges
+REFERENCE_TRIES = 6  # amplitudes of the default chirp tried, bisecting towards the limits
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    starts: int = 8                 # Sobol points per family (a power of two keeps Sobol balanced)
+    refine: int = 16                # Nelder-Mead evaluations from the best point
+    draws: int = 4                  # parameter draws per rival (antithetic pairs)
+    seed: int = 0
+    families: tuple[str, ...] = tuple(FAMILIES)
+
+    def __post_init__(self) -> None:
+        for name in ("starts", "refine", "draws", "seed"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < (1 if name == "starts" else 0):
+                raise ValueError(f"{name}={value!r} must be an integer >= {1 if name == 'starts' else 0}")
+        unknown = [f for f in self.families if f not in FAMILIES]
+        if not self.families or unknown:
+            raise ValueError(f"families={','.join(self.families)} must name input families "
+                             f"(allowed: {', '.join(FAMILIES)})")
+
+
+@dataclass
+class Candidate:
+    """One evaluated input: its family, coordinates, excitation and torque samples, score D,
+    largest share of a limit used, both rivals' runs and their windowed predictions in each
+    run (None where a rival diverged)."""
+
+    family: str
+    point: tuple[float, ...]
+    excitation: object
+    u: np.ndarray
+    score: float
+    usage: float
+    traces: tuple[Trace, Trace] | None
+    windowed: tuple[Windowed, Windowed] | None = None
+
+    @property
+    def feasible(self) -> bool:
+        return self.traces is not None and self.usage <= 1.0
+
+    def objective(self) -> float:
+        """What the optimiser minimises: -D when feasible, the overshoot when not."""
+        if self.traces is None:
+            return _WORST
+        return -self.score if self.usage <= 1.0 else self.usage
+
+
+@dataclass
+class Design:
+    """The chosen experiment, the default chirp of the same length on the same criterion, and
+    every input evaluated (family, point, D, usage)."""
+
+    best: Candidate
+    reference: Candidate
+    rivals: tuple[Rival, Rival]
+    noise: dict[str, float]
+    limits: Limits
+    evaluated: list[tuple[str, tuple[float, ...], float, float]] = field(default_factory=list)
+
+
+class Evaluator:
+    """Scores inputs for one pair of rivals under the limits and noise floor."""
+
+    def __init__(self, rivals: tuple[Rival, Rival], noise: dict[str, float], limits: Limits,
+                 options: SearchOptions = SearchOptions(), window: WindowDesign = WindowDesign()):
+        self.models = tuple(RivalModel(r, limits.rate, options.draws, options.seed) for r in rivals)
+        self.noise, self.limits, self.window = noise, limits, window
+        self.evaluated: list[tuple[str, tuple[float, ...], float, float]] = []
+
+    def input(self, family: str, point, excitation, u: np.ndarray) -> Candidate:
+        try:
+            traces = tuple(m.run(u) for m in self.models)
+        except Diverged:
+            cand = Candidate(family, tuple(point), excitation, u, 0.0, np.inf, None)
+        else:
+            use = max(usage(tr, self.limits) for tr in traces)
+            ws = tuple(windowed(self.models, tr, k, self.window) for k, tr in enumerate(traces))
+            score = discrimination(list(ws), self.noise, self.limits.signals)
+            cand = Candidate(family, tuple(point), excitation, u, score, use, traces, ws)
+        self.evaluated.append((family, cand.point, cand.score, cand.usage))
+        return cand
+
+    def point(self, family: str, point) -> Candidate:
+        point = tuple(float(v) for v in np.clip(point, 0.0, 1.0))
+        excitation, u = programme(family, point, self.limits)
+        return self.input(family, point, excitation, u)
+
+
+def default_chirp(limits: Limits, scale: float = 1.0) -> Chirp:
+    """The reference experiment: the shipped default chirp (30 -> 1 Hz), its amplitude capped
+    at the torque limit and times ``scale``."""
+    base = Chirp()
+    return Chirp(amplitude=scale * min(base.amplitude, limits.max_torque), f_start=base.f_start,
+                 f_end=base.f_end, sweep=base.sweep)
+
+
+def reference(ev: "Evaluator", limits: Limits) -> Candidate:
+    """The default chirp at the largest amplitude (bisected, REFERENCE_TRIES runs) at which both
+    rivals' runs keep within the limits: the fair comparison for a designed experiment. Where
+    even the smallest tried amplitude breaks a limit (a rival whose offset alone drives the link
+    out of range), that run is returned, infeasible."""
+    lo, hi, feasible, last = 0.0, 1.0, None, None
+    for k in range(REFERENCE_TRIES):
+        scale = 1.0 if k == 0 else 0.5 * (lo + hi)
+        chirp = default_chirp(limits, scale)
+        last = ev.input("default chirp", (), chirp, chirp.sample(limits.rate, limits.duration))
+        if last.feasible:
+            feasible, lo = last, scale
+            if k == 0:
+                break
+        else:
+            hi = scale
+    return feasible if feasible is not None else last
+
+
+def design(rivals: tuple[Rival, Rival], noise: dict[str, float], limits: Limits,
+           options: SearchOptions = SearchOptions(), window: WindowDesign = WindowDesign(),
+           progress=None) -> Design:
+    """The input that maximises D between ``rivals`` within ``limits`` (module doc).
+
+    ``progress(evaluations, best D)`` is called after each evaluation. Raises ``ValueError`` when
+    no evaluated input keeps both rivals within the limits.
+    """
+    ev = Evaluator(rivals, noise, limits, options, window)
+    best: Candidate | None = None
+
+    def consider(c: Candidate) -> Candidate:
+        nonlocal best
+        if best is None or c.objective() < best.objective():
+            best = c
+        if progress is not None:
+            progress(len(ev.evaluated), best.score if best.feasible else 0.0)
+        return c
+
+    for family in options.families:
+        dim = FAMILIES[family][0]
+        points = qmc.Sobol(dim, scramble=True, seed=options.seed).random(options.starts)
+        for p in points:
+            consider(ev.point(family, p))
+    if options.refine and best is not None:
+        start, family = np.array(best.point), best.family
+        minimize(lambda p: consider(ev.point(family, p)).objective(), start, method="Nelder-Mead",
+                 options={"maxfev": options.refine, "initial_simplex": _simplex(start)})
+    if best is None or not best.feasible:
+        raise ValueError("no input of the families tried keeps both rivals within the limits "
+                         "(raise --max-speed / --angle-range or lower --max-torque)")
+    problems = [v for r, tr in zip(rivals, best.traces) for v in violations(tr, limits, r.effect)]
+    if problems:  # the feasibility test above and this check read the same runs
+        raise RuntimeError("; ".join(problems))
+    return Design(best, reference(ev, limits), rivals, dict(noise), limits, ev.evaluated)
+
+
+def _simplex(x: np.ndarray, step: float = 0.15) -> np.ndarray:
+    """A Nelder-Mead start simplex about x inside [0, 1]^k (each vertex steps inward)."""
+    verts = [x]
+    for i in range(len(x)):
+        v = x.copy()
+        v[i] += step if x[i] + step <= 1.0 else -step
+        verts.append(v)
+    return np.array(verts)

@@ -1,0 +1,78 @@
+"""The two explanations an experiment must separate, each a fitted structure with its intervals.
+
+A rival is named by the effect that distinguishes it (``input_offset``, ``friction_asymmetry``,
+...) over a base both share. Its parameter uncertainty enters the design as prediction spread:
+``draws`` gives a few structures drawn about the fitted one, in the optimiser's coordinates
+(log where a parameter spans decades), with the standard error each 95 % interval implies.
+Only the distinguishing effect's parameters are drawn: the intervals are marginal (the fit keeps
+no covariance), and drawing correlated base parameters independently (inertia and stiffness,
+Coulomb and viscous friction) would spread predictions along directions the fit pins down.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..identify.effects import EFFECTS
+from ..identify.structure import Structure
+
+Z95 = 1.959964  # half-width of a 95 % interval in standard errors
+
+
+@dataclass(frozen=True)
+class Rival:
+    """One explanation: the effect that distinguishes it, its fitted structure, its 95 % intervals."""
+
+    effect: str
+    structure: Structure
+    intervals: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.effect not in self.structure.effects:
+            raise ValueError(f"rival {self.effect!r} is not among its structure's effects "
+                             f"({', '.join(self.structure.effects)})")
+
+    @property
+    def drawn(self) -> tuple[str, ...]:
+        """The parameters whose uncertainty is propagated: the distinguishing effect's."""
+        own = {p.name for p in EFFECTS[self.effect].params}
+        return tuple(p.name for p in self.structure.params if p.name in own)
+
+    def standard_errors(self) -> np.ndarray:
+        """Standard error of each drawn parameter in the optimiser's coordinates (from its 95 %
+        interval; no interval or an unbounded one: a quarter of the parameter's range)."""
+        names = self.drawn
+        lo, hi = self.structure.bounds(names)
+        params = {p.name: p for p in self.structure.params}
+        se = []
+        for name, a, b in zip(names, lo, hi):
+            span = (b - a) / 4
+            if name in self.intervals:
+                p = params[name]
+                low, high = self.intervals[name]
+                if p.log and low <= 0:
+                    se.append(span)
+                    continue
+                width = abs(p.to_unit(high) - p.to_unit(low)) / (2 * Z95)
+                se.append(min(width, span) if np.isfinite(width) else span)
+            else:
+                se.append(span)
+        return np.asarray(se)
+
+    def draws(self, n: int, seed: int = 0) -> list[Structure]:
+        """``n`` structures (n even: antithetic pairs x +- d, so the draws' mean is the fit)
+        with the drawn parameters normal about the fit, clipped to their bounds."""
+        names = self.drawn
+        if n == 0 or not names:
+            return []
+        x = self.structure.vector(names)
+        se = self.standard_errors()
+        lo, hi = self.structure.bounds(names)
+        d = np.random.default_rng(seed).standard_normal(((n + 1) // 2, len(names))) * se
+        steps = np.concatenate([d, -d])[:n]
+        return [self.structure.from_vector(np.clip(x + s, lo, hi), names) for s in steps]
+
+    def describe(self) -> dict:
+        return {"effect": self.effect, **self.structure.describe(),
+                "intervals_95": {k: list(v) for k, v in self.intervals.items()}}
