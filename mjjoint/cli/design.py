@@ -20,7 +20,8 @@ from ..identify.effects import EFFECTS
 from ..identify.structure import Structure
 from ..design.limits import PREDICTED
 from .errors import CliError
-from .fit import Problem, add_problem_options, effect_names, load_problem, read_input, run_info
+from ..recordings import read_recording
+from .options import Problem, add_problem_options, effect_names, inputs_from_args, prepare, run_info
 
 DEFAULT_OUT = Path("out/design")
 
@@ -138,19 +139,18 @@ def run(args: argparse.Namespace) -> int:
     from ..design.optimise import SearchOptions
     from ..design.rivals import Rival
     from ..identify.fit import fit
-    from ..report.output import OutputDir
 
-    out = OutputDir(args.out)
-    out.check()
     limits = limits_from_args(args)
     options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws)
     if args.max_iter < 1:
         raise CliError(f"--max-iter {args.max_iter} must be at least 1")
-    problem = load_problem(args)
+    out, problem = prepare(args)
     if not isinstance(problem, Problem) or not isinstance(problem.base.nominal, ArmSpec):
         raise CliError("design works on one elastic joint (--plant arm, a single-joint recording)")
-    new = None if args.decide is None else read_input(argparse.Namespace(**{**vars(args), "recording": args.decide}),
-                                                      problem.base.gear_ratio, args.k_m)
+    inputs = inputs_from_args(args)
+    new = None if args.decide is None else read_recording(args.decide, columns=inputs.columns, scales=inputs.scales,
+                                                          gear_ratio=problem.base.gear_ratio, k_m=args.k_m,
+                                                          allow_gaps=args.allow_gaps)
     if args.diagnosis is not None:
         base, pair = rivals_from_diagnosis(args.diagnosis, problem.base.nominal, problem.base.gear_ratio)
     else:
