@@ -29,6 +29,7 @@ import numpy as np
 
 from ..identify.structure import Structure
 from ..identify.windows import Measured, Predictor, noise_std
+from ..recordings import Recording
 
 RESOLUTION = 0.01      # NRMSE no model comparison resolves below (module doc)
 EXPLAINED_RATIO = 1.5  # held-out NRMSE up to this multiple of the floor: within the noise
@@ -131,33 +132,20 @@ def _twin_floor(predictor: Predictor, structure: Structure, noise: dict, quantum
             return None
         x = run[s] + rng.normal(0.0, noise[s], len(run[s]))
         return np.round(x / quantum[s]) * quantum[s] if quantum[s] > 0 else x
-    rec = _Twin(t=m.t, u=m.u, q=recorded("q"), theta=recorded("theta"), tau=recorded("tau"))
+    # A direct drive's recording has no theta: a placeholder, which from_recording ignores.
+    theta = recorded("theta") if m.theta is not None else np.zeros_like(m.t)
+    rec = Recording(t=m.t, u=m.u, q=recorded("q"), theta=theta, tau=recorded("tau"))
     twin_m = replace(Measured.from_recording(rec, m.gear_ratio, output=m.theta is not None), joins=m.joins)
     twin = Predictor(twin_m, predictor.design, predictor.nthread)
     windows = twin.test
-    (pred,) = twin.predict([structure], windows)
-    out = {}
     for s in spread:
-        own = twin.spread(s, windows)
-        if not 1 / TWIN_SPREAD <= own / spread[s] <= TWIN_SPREAD:
+        ratio = twin.spread(s, windows) / spread[s]
+        if not 1 / TWIN_SPREAD <= ratio <= TWIN_SPREAD:
             # An open-loop run of a closed-loop recording, or a model far off, wanders elsewhere:
             # its windowing costs say nothing about this recording's.
-            return {}, (f"the final model's free run is not like the recording ({s} spreads {own / spread[s]:.2g}x "
-                        "as far): no twin")
-        err = pred[s][:, twin.cols] - twin.meas[s][windows][:, twin.cols]
-        rms = float(np.sqrt(np.mean(err ** 2)))
-        if not np.isfinite(rms):
-            return {}, "the final model could not predict its own twin: no twin"
-        out[s] = rms / own
+            return {}, f"the final model's free run is not like the recording ({s} spreads {ratio:.2g}x as far): no twin"
+    (pred,) = twin.predict([structure], windows)
+    out = {s: v for s, v in twin.nrmse(pred, windows).items() if s in spread}
+    if not all(np.isfinite(v) for v in out.values()):
+        return {}, "the final model could not predict its own twin: no twin"
     return out, ""
-
-
-@dataclass(frozen=True)
-class _Twin:
-    """The columns ``Measured.from_recording`` reads."""
-
-    t: np.ndarray
-    u: np.ndarray
-    q: np.ndarray
-    theta: np.ndarray | None
-    tau: np.ndarray | None

@@ -321,14 +321,14 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         where = residual_location(predictor, current.structure)
         clock.round = k
         floor_cost = noise_floor(predictor, current.structure).cost()
-        ref, screened = _screen(predictor, current, where, options, say, clock, unstable=unstable)
+        ref, screened = _screen(predictor, current, where, options, say, clock, unstable)
         if not screened:
             break
         choice, screen = _decide(predictor, ref, screened, options, floor_cost), "stand-ins held"
         if choice.only_inconsistent and options.free_all:
             say(f"  best candidate {choice.best} fails only the rank test ({choice.failed[0]}); screening "
                 "again with every parameter free, from the model refitted")
-            ref, screened = _screen(predictor, current, where, options, say, clock, free_all=True, unstable=unstable)
+            ref, screened = _screen(predictor, current, where, options, say, clock, unstable, free_all=True)
             if ref.cost_test < current.cost_test:  # the same structure, fitted further
                 current = history[-1] = ref
                 initial = initial if steps else ref
@@ -466,7 +466,7 @@ def _robust(predictor: Predictor, result: FitResult, options: DiagnoseOptions, p
 
 
 def _screen(predictor: Predictor, current: FitResult, where: dict, options: DiagnoseOptions, say,
-            clock: ScreenClock, free_all: bool = False, unstable: dict[str, str] | None = None
+            clock: ScreenClock, unstable: dict[str, str], free_all: bool = False
             ) -> tuple[FitResult, dict[str, tuple[float, FitResult]]]:
     """(the fit candidates are held against, {effect: (held-out cost, fit)}) of one screening.
 
@@ -495,7 +495,7 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         trial = trial.with_effect(effect, values, settings)
         freed = None if free_all else screened_params(name, ref.structure)
         res = fit(predictor, trial, freed, max_iter=options.screen_iter)
-        if not res.cost_test < UNSTABLE_COST and unstable is not None:
+        if not res.cost_test < UNSTABLE_COST:
             unstable[name] = _instability(trial)
             say(f"  screened {name}: unstable prediction ({unstable[name]}); again at half the timestep")
             res = fit(predictor, _halved_step(trial), freed, max_iter=options.screen_iter)

@@ -373,10 +373,13 @@ class Predictor:
         m = self.m
         measured = {"q": m.q, "theta": m.theta, "delta": m.delta, "tau": m.tau}
         out = {k: np.array(v, float) if v is not None else np.full(len(m.t), np.nan) for k, v in measured.items()}
-        ends = (*m.joins, len(m.t))
-        for w in np.flatnonzero(np.diff(np.searchsorted(ends, self.starts, side="right"), prepend=-1)):
+        for first, end in m.segments:
+            inside = np.flatnonzero((self.starts >= first) & (self.starts < end))
+            if inside.size == 0:
+                continue
+            w = inside[0]
             i0 = int(self.starts[w])
-            n = int(ends[np.searchsorted(ends, i0, side="right")]) - i0
+            n = end - i0
             x0 = self._start_states(model, ji, arm.input_delay, np.array([w]), structure.skew)
             ctrl = self._controls(model, np.array([i0]), n, arm.input_delay, ji)
             for _, _, state in self._rollouts([model], x0, ctrl):
@@ -480,10 +483,16 @@ class Predictor:
         lead = self.lead_samples[windows] if ji.block[FKIND] == FRICTION_2SEP else np.zeros(len(i0), int)
         rows = np.flatnonzero(lead > 0)
         lead = lead[rows]
-        # One history run serves the window starts and the lead-ins' starts.
-        x = self._initial_states(model, np.concatenate([i0, i0[rows] - lead]), ji, skew)
-        x0, first = x[:len(i0)], x[len(i0):]
-        self._flexible_start(model, ji, delay, i0, x0)
+        flex = self._flexible_rows(model, ji, i0)
+        flex_lead = int(round(FLEX_LEAD * self.m.rate))
+        # One history run serves the window starts and both kinds of lead-in's starts.
+        x = self._initial_states(model, np.concatenate([i0, i0[rows] - lead, i0[flex] - flex_lead]), ji, skew)
+        x0, first, bent = x[:len(i0)], x[len(i0):len(i0) + len(rows)], x[len(i0) + len(rows):]
+        if flex.size:
+            self._flexible_start(model, ji, delay, i0[flex] - flex_lead, bent)
+            qadr, vadr = _hidden_coordinates(model, ji)
+            x0[flex[:, None], 1 + qadr[None, :]] = bent[:, 1 + qadr]
+            x0[flex[:, None], 1 + model.nq + vadr[None, :]] = bent[:, 1 + model.nq + vadr]
         if rows.size == 0:
             return x0
         sub = self._substeps(model)
@@ -497,9 +506,20 @@ class Predictor:
         self.rollouts += len(rows) * (n - 1) / (len(self.starts) * (self.nwin_samples - 1))
         return x0
 
-    def _flexible_start(self, model, ji, delay: float, i0: np.ndarray, x0: np.ndarray) -> None:
-        """The link's flexible segments at the window starts ``i0`` (rows of ``x0``, in place): the
-        model's rod driven by the measured hub over FLEX_LEAD before each start.
+    def _flexible_rows(self, model, ji, i0: np.ndarray) -> np.ndarray:
+        """Which window starts ``i0`` get a flexible link's lead-in (``_flexible_start``): all, on
+        a link with segments, but those closer than FLEX_LEAD to their recording's start."""
+        lead = int(round(FLEX_LEAD * self.m.rate))
+        if lead == 0 or _hidden_coordinates(model, ji) is None:
+            return np.zeros(0, int)
+        bounds = np.array([0, *self.m.joins])
+        first = bounds[np.searchsorted(bounds, i0, side="right") - 1]
+        return np.flatnonzero(i0 - lead >= first)
+
+    def _flexible_start(self, model, ji, delay: float, at: np.ndarray, x: np.ndarray) -> None:
+        """Runs the states ``x`` at samples ``at`` over FLEX_LEAD (in place): the model's rod
+        driven by the measured hub, so that its segments at the window starts are bent as the hub
+        bent them.
 
         The encoders see the hub only; the rod's bending and vibration are states no sample
         gives. A straight rod at each start sets off a vibration the recording does not hold
@@ -507,32 +527,19 @@ class Predictor:
         0.56 in delta, 0.08 with this lead-in). A free lead-in does not do: its hub drifts from
         the measured one, and the bending follows the hub. So the lead-in runs one sample at a
         time with the encoders' joints put back on the record, and only the segments' relative
-        angles and rates are taken.
+        angles and rates are taken (``_start_states``).
         """
-        hidden = _hidden_coordinates(model, ji)
-        if hidden is None:
-            return
-        qadr, vadr = hidden
-        lead = int(round(FLEX_LEAD * self.m.rate))
-        bounds = np.array([0, *self.m.joins])
-        first = bounds[np.searchsorted(bounds, i0, side="right") - 1]
-        rows = np.flatnonzero(i0 - lead >= first)
-        if rows.size == 0 or lead == 0:
-            return
         m = self.m
-        x = self._initial_states(model, i0[rows] - lead, ji)
+        lead = int(round(FLEX_LEAD * m.rate))
         seen = [(1 + ji.motor_qpos, m.q), (1 + model.nq + ji.motor_dof, m.qd)]
         if ji.link_qpos >= 0:
             seen += [(1 + ji.link_qpos, m.theta), (1 + model.nq + ji.link_dof, m.thetad)]
         for k in range(lead):  # one sample at a time, the encoders' joints put back on the record
-            at = i0[rows] - lead + k
             for col, meas in seen:
-                x[:, col] = meas[at]
-            for a, b, state in self._rollouts([model] * len(rows), x, self._controls(model, at, 2, delay, ji)):
+                x[:, col] = meas[at + k]
+            for a, b, state in self._rollouts([model] * len(at), x, self._controls(model, at + k, 2, delay, ji)):
                 x[a:b] = state[:, -1]
-        x0[rows[:, None], 1 + qadr[None, :]] = x[:, 1 + qadr]
-        x0[rows[:, None], 1 + model.nq + vadr[None, :]] = x[:, 1 + model.nq + vadr]
-        self.rollouts += len(rows) * lead / (len(self.starts) * (self.nwin_samples - 1))
+        self.rollouts += len(at) * lead / (len(self.starts) * (self.nwin_samples - 1))
 
     @cached_property
     def lead_samples(self) -> np.ndarray:
