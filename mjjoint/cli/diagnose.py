@@ -2,7 +2,8 @@
 
 Runs the fit -> locate -> name -> refit loop (``diagnosis.loop``) from a starting model and
 reports where simulation and recording differ, the effects found missing in order, the
-fitted model with them, and the held-out NRMSE before and after; or that nothing is missing.
+fitted model with them, the held-out NRMSE before and after, and whether the final model
+explains the recording to its noise floor (``diagnosis.floor``).
 """
 from __future__ import annotations
 
@@ -50,8 +51,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "diagnose", help="name the physics a model lacks for a recording, with evidence",
         description="Fit the starting model to the recording, locate where its predictions miss, name the\n"
-                    "missing effect that best explains held-out data, add it, refit; repeat until nothing\n"
-                    "significant is missing.",
+                    "missing effect that best explains held-out data, add it, refit; repeat until no candidate\n"
+                    "passes, then judge the final model against the recording's noise floor.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_problem_options(p, DEFAULT_OUT)
     d = p.add_argument_group("diagnosis")

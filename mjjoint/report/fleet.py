@@ -11,7 +11,7 @@ from pathlib import Path
 
 from .html import _num, _page
 from .output import MARKER, staged_files, write_json
-from .summary import SIGNAL_ORDER
+from .summary import SIGNAL_ORDER, none_named
 
 CSV_NAME = "fleet.csv"
 
@@ -35,7 +35,7 @@ def fleet_page(source: str, rows: list[dict], run: dict) -> str:
         else:
             missing = ", ".join(f"<code>{escape(e)}</code>" for e in r["missing"].split(";") if e)
             cells = [f'<a href="{escape(r["report"])}">{name}</a>', str(r["joint"]),
-                     missing or "nothing significant", _nrmse(r, "before"), _nrmse(r, "after"), _seconds(r),
+                     missing or none_named(r["explained"]), _nrmse(r, "before"), _nrmse(r, "after"), _seconds(r),
                      "ok (earlier run)" if r["reused"] else "ok"]
         body.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
     body += ["</table>", f'<p class="muted">Rows: <code>{CSV_NAME}</code>; each recording\'s report in its '

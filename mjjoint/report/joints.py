@@ -6,7 +6,7 @@ from pathlib import Path
 
 from .html import _num, _page
 from .output import MARKER, write_json
-from .summary import SIGNAL_ORDER
+from .summary import SIGNAL_ORDER, none_named
 
 
 def _nrmse(values: dict[str, float]) -> str:
@@ -18,7 +18,7 @@ def _rows(command: str, data: dict[str, dict]) -> list[str]:
     for j, d in data.items():
         link = f'<a href="joint{escape(j)}/index.html">joint {escape(j)}</a>'
         if command == "diagnose":
-            missing = ", ".join(f"<code>{escape(e)}</code>" for e in d["missing"]) or "nothing significant"
+            missing = ", ".join(f"<code>{escape(e)}</code>" for e in d["missing"]) or none_named(d["explained"])
             cells = [missing, _nrmse(d["initial_fit"]["nrmse_heldout"]), _nrmse(d["final_fit"]["nrmse_heldout"])]
         else:
             effects = ", ".join(f"<code>{escape(e)}</code>" for e in d["structure"]["effects"]) or "minimal"

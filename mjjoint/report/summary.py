@@ -52,6 +52,11 @@ def step_values(step: dict, final: dict) -> dict[str, float]:
     return values
 
 
+def none_named(explained: bool) -> str:
+    """What a table says of a diagnosis that named no effect: whether its model explains the recording."""
+    return "none named; explained to the noise" if explained else "none named; a mismatch remains"
+
+
 def nrmse_lines(before: dict[str, float], after: dict[str, float] | None = None) -> list[str]:
     """One line per signal: held-out NRMSE, and its change when ``after`` is given."""
     out = []
