@@ -1,13 +1,14 @@
 """The complete parameter set of one elastic joint, and its MJCF ``<config>`` form.
 
 A joint is the chapter's topology (Fig. 1, Fig. 7): motor friction, transmission (stiffness,
-hysteresis, damping, backlash), load bearing friction, and optionally a motor torque ripple.
-Each term can be switched off (``None``); without a transmission the joint is a direct drive
-whose motor joint carries the load itself (a linear axis, a servo with one encoder): its
-output side must then be ``GROUND``. The MJCF plugin instance carries exactly these
-values as flat config keys ``<section>`` (the term's kind, or ``none``) and
-``<section>.<field>``; ``JointParams.to_config``/``from_config`` convert both ways, and the
-plugin's init parses the config with the same code, so the MJCF is the model.
+hysteresis, damping, backlash), load bearing friction, and optionally a motor torque ripple,
+plus any term a user declares (``physics.catalogue``). Each term can be switched off
+(``None``); without a transmission the joint is a direct drive whose motor joint carries the
+load itself (a linear axis, a servo with one encoder): its output side must then be
+``GROUND``. The MJCF plugin instance carries exactly these values as flat config keys
+``<section>`` (the term's kind, or ``none``) and ``<section>.<field>``, read off the terms'
+declarations; ``JointParams.to_config``/``from_config`` convert both ways, and the plugin's
+init parses the config with the same code, so the MJCF is the model.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import functools
 from dataclasses import dataclass
 
 from .params import fields_dict, is_number
-from .physics.boucwen import BoucWen
+from .physics.catalogue import BUILTIN, TERMS
 from .physics.load import LoadFriction
 from .physics.ripple import TorqueRipple
 from .physics.stribeck import StaticFriction
@@ -24,13 +25,9 @@ from .physics.transmission import Transmission
 from .physics.twosep import TwoSEP
 
 # section -> {kind name: class}; the kind is what the MJCF says, e.g. friction="2sep".
-SECTIONS: dict[str, dict[str, type]] = {
-    "friction": {"2sep": TwoSEP, "static": StaticFriction},
-    "transmission": {"spring": Transmission},
-    "hysteresis": {"boucwen": BoucWen},
-    "load_friction": {"bearing": LoadFriction},
-    "ripple": {"sine": TorqueRipple},
-}
+SECTIONS: dict[str, dict[str, type]] = {t.section: dict(t.kinds) for t in TERMS}
+# The terms JointParams holds in fields of their own; the others live in ``JointParams.extra``.
+JOINT_FIELDS = {t.section for t in BUILTIN}
 # A joint name meaning "fixed to the world": cuts that side free of motion (locked output,
 # Fig. 11; or a spring to ground, Fig. 4).
 GROUND = "world"
@@ -46,6 +43,8 @@ class JointParams:
     transmission: Transmission | None = Transmission()
     load_friction: LoadFriction | None = LoadFriction()
     ripple: TorqueRipple | None = None
+    # The user-declared terms that are on, as (section, parameters) pairs in catalogue order.
+    extra: tuple[tuple[str, object], ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("motor_joint", "link_joint"):
@@ -56,6 +55,24 @@ class JointParams:
         if self.transmission is None and self.link_joint != GROUND:
             raise ValueError(f"transmission=none (a direct drive) needs link_joint={GROUND!r}, "
                              f"got {self.link_joint!r}")
+
+    def term(self, section: str):
+        """The parameters of the term ``section`` (``None``: off)."""
+        if section == "hysteresis":
+            return None if self.transmission is None else self.transmission.hysteresis
+        if section in JOINT_FIELDS:
+            return getattr(self, section)
+        return dict(self.extra).get(section)
+
+    def with_term(self, section: str, params) -> "JointParams":
+        """A copy with the term ``section`` set to ``params`` (``None``: off)."""
+        if section == "hysteresis":
+            return self.replace(transmission=dataclasses.replace(self.transmission, hysteresis=params))
+        if section in JOINT_FIELDS:
+            return self.replace(**{section: params})
+        extra = {**dict(self.extra), section: params}
+        return self.replace(extra=tuple((t.section, extra[t.section]) for t in TERMS
+                                        if extra.get(t.section) is not None))
 
     @property
     def direct_drive(self) -> bool:
@@ -95,7 +112,7 @@ class JointParams:
                 terms[section] = None
                 continue
             if not kind and not values:  # not mentioned at all: the term's default
-                terms[section] = _DEFAULT_OFF.get(section, _default_term(section))
+                terms[section] = _unmentioned(section)
                 continue
             kind = kind or next(iter(kinds))  # fields given without a kind: the first kind
             if kind not in kinds:
@@ -120,15 +137,13 @@ class JointParams:
         transmission = terms.pop("transmission")
         if transmission is not None:
             transmission = dataclasses.replace(transmission, hysteresis=hysteresis)
+        extra = tuple((k, v) for k, v in terms.items() if k not in JOINT_FIELDS and v is not None)
+        own = {k: v for k, v in terms.items() if k in JOINT_FIELDS}
         return cls(motor_joint=cfg.get("motor_joint", "motor"), link_joint=cfg.get("link_joint", "link"),
-                   transmission=transmission, **terms)
+                   transmission=transmission, extra=extra, **own)
 
     def _terms(self) -> dict[str, object]:
-        return {"friction": self.friction, "transmission": self.transmission,
-                "hysteresis": None if self.transmission is None else self.transmission.hysteresis,
-                "load_friction": self.load_friction,
-                "ripple": self.ripple}
-
+        return {t.section: self.term(t.section) for t in TERMS}
 
 
 def _kind_of(section: str, term: object) -> str:
@@ -137,29 +152,16 @@ def _kind_of(section: str, term: object) -> str:
     return next(k for k, c in SECTIONS[section].items() if isinstance(term, c))
 
 
-def _default_term(section: str):
-    return next(iter(SECTIONS[section].values()))()
-
-
-# Terms that are absent when the MJCF says nothing about them (the chapter assumes no ripple).
-_DEFAULT_OFF = {"ripple": None}
+def _unmentioned(section: str):
+    """A term's parameters when the MJCF does not mention it: its first kind's defaults, or off."""
+    t = next(t for t in TERMS if t.section == section)
+    return next(iter(t.kinds.values()))() if t.default_on else None
 
 
 @functools.lru_cache(maxsize=None)
 def config_keys() -> tuple[str, ...]:
     """Every config attribute the plugin declares to MuJoCo."""
-    keys = ["motor_joint", "link_joint"]
-    for section, kinds in SECTIONS.items():
-        keys.append(section)
-        names: list[str] = []
-        for klass in kinds.values():
-            names += [f.name for f in dataclasses.fields(klass)
-                      if f.name not in names and f.name != "hysteresis"]
-        keys += [f"{section}.{n}" for n in names]
-    return tuple(keys)
-
-
-RATED_DEFLECTION = 5e-3  # [rad]: a harmonic drive's deflection at rated torque, where stiffness is checked
+    return ("motor_joint", "link_joint", *(k for t in TERMS for k in (t.section, *(f"{t.section}.{f}" for f in t.fields))))
 
 
 # Semi-implicit Euler with explicit spring and damper forces on one inertia is stable for
@@ -182,34 +184,17 @@ def _group_timestep(stiff: dict[str, float], slope: dict[str, float]) -> tuple[f
 def stable_timestep(params: JointParams, motor_inertia: float, link_inertia: float) -> tuple[float, str]:
     """Largest stable timestep for the explicitly injected forces, and the term that sets it.
 
-    The plugin's forces are explicit in MuJoCo's integrator. Each term is a stiffness k (the
-    transmission at ``RATED_DEFLECTION``, 2SEP pre-sliding) or a velocity slope c (damping,
-    regularised Coulomb friction) on an inertia J: the motor's, the link's, or for the
-    transmission the reduced inertia of both sides; terms on the same inertia are combined
-    (``_group_timestep``). ``link_inertia`` must be the apparent inertia behind the gear
-    (``assets.stability``: the hub alone when the rod has flexible segments, since they decouple
-    at these frequencies); ``inf`` for a side fixed to the world.
+    The plugin's forces are explicit in MuJoCo's integrator. Each term declares its stiffnesses
+    k and velocity slopes c on an inertia J (``Term.stability``: the transmission on the reduced
+    inertia of both sides, 2SEP's pre-sliding and a static map's Coulomb slope on the motor's,
+    the bearing friction on the link's); a term's are combined (``_group_timestep``).
+    ``link_inertia`` must be the apparent inertia behind the gear (``assets.stability``: the hub
+    alone when the rod has flexible segments, since they decouple at these frequencies); ``inf``
+    for a side fixed to the world.
     """
     for name, value in (("motor_inertia", motor_inertia), ("link_inertia", link_inertia)):
         if not value > 0:  # inf is allowed: a side fixed to the world
             raise ValueError(f"{name}={value!r} is outside the allowed range (0, inf]")
-    tr = params.transmission
-    groups = []
-    if tr is not None:
-        n = tr.gear_ratio
-        d = RATED_DEFLECTION
-        k_max = tr.k1 + 2 * tr.k2 * d + 3 * tr.k3 * d * d
-        j_red = 1.0 / (1.0 / link_inertia + 1.0 / (motor_inertia * n * n))
-        groups.append(({"transmission.k1/k3 (stiffness)": k_max / j_red},
-                       {"transmission.damping": tr.damping / j_red}))
-    f = params.friction
-    if isinstance(f, TwoSEP):
-        groups.append(({"friction.k (pre-sliding stiffness)": 2 * (f.fs + abs(f.asym)) * f.k / motor_inertia}, {}))
-    elif isinstance(f, StaticFriction):
-        groups.append(({}, {"friction.v_eps (Coulomb slope)":
-                            (max(f.fc, f.fs) + abs(f.asym)) / (f.v_eps * motor_inertia)
-                            + f.sigma * (1 + abs(f.sigma_asym)) / motor_inertia}))
-    if params.load_friction is not None:
-        lf = params.load_friction
-        groups.append(({}, {"load_friction.v_eps (Coulomb slope)": (lf.fc / lf.v_eps + lf.viscous) / link_inertia}))
+    groups = [t.stability(params.term(t.section), motor_inertia, link_inertia) for t in TERMS
+              if t.stability is not None and params.term(t.section) is not None]
     return min((_group_timestep(*g) for g in groups), key=lambda r: r[0], default=(float("inf"), ""))

@@ -28,7 +28,8 @@ import mujoco
 import yaml
 
 from .assets import ASSETS_DIR, ArmSpec, load_model
-from .joint import SECTIONS, JointParams
+from .joint import JOINT_FIELDS, SECTIONS, JointParams
+from .physics.catalogue import TERMS
 from .params import check, from_mapping, is_number
 
 SUFFIXES = (".toml", ".yaml", ".yml", ".xml")
@@ -138,17 +139,19 @@ def parse_model(data: Any) -> ModelFile:
     for name, body in data.items():
         if not isinstance(body, dict):
             raise ValueError(f"{name} must be a section of key = value pairs, not {body!r}")
+    # A section absent from the file leaves its term as the defaults have it; a nested term
+    # (the transmission's hysteresis) is read first and handed to the term that holds it.
     d = JointParams()
-    hysteresis = _term("hysteresis", data.get("hysteresis"), d.transmission.hysteresis)
-    terms = {
-        "friction": _term("friction", data.get("friction"), d.friction),
-        "transmission": _term("transmission", data.get("transmission", {}), None, hysteresis=hysteresis),
-        "load_friction": _term("load_friction", data.get("load_friction"), d.load_friction),
-        "ripple": _term("ripple", data.get("ripple"), d.ripple),
-    }
+    terms: dict[str, Any] = {}
+    for t in sorted(TERMS, key=lambda t: t.nested_in is None):
+        inner = {u.section: terms.pop(u.section) for u in TERMS if u.nested_in == t.section}
+        given = data.get(t.section, {} if t.section in REQUIRED else None)
+        terms[t.section] = _term(t.section, given, d.term(t.section), **inner)
+    extra = tuple((s, v) for s, v in terms.items() if s not in JOINT_FIELDS and v is not None)
+    own = {s: v for s, v in terms.items() if s in JOINT_FIELDS}
     return ModelFile(
         arm=from_section(ArmSpec, data.get("arm", {}), "arm"),
-        joint=from_section(JointParams, data.get("joint", {}), "joint", **terms),
+        joint=from_section(JointParams, data.get("joint", {}), "joint", extra=extra, **own),
         sample_rate=from_section(Simulation, data.get("simulation", {}), "simulation").sample_rate,
     )
 
@@ -185,10 +188,8 @@ def model_mapping(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(),
     """The sections of a model file describing ``arm`` and ``joint`` (inverse of ``parse_model``)."""
     out = {"simulation": {"sample_rate": float(sample_rate)}, "arm": _values(arm),
            "joint": {"motor_joint": joint.motor_joint, "link_joint": joint.link_joint}}
-    terms = {"friction": joint.friction, "transmission": joint.transmission,
-             "hysteresis": joint.transmission.hysteresis, "load_friction": joint.load_friction,
-             "ripple": joint.ripple}
-    for section, term in terms.items():
+    for section in SECTIONS:
+        term = joint.term(section)
         if term is None:
             out[section] = {"kind": NONE}
             continue

@@ -18,6 +18,7 @@ from .assets import load_model
 from .coupling.kernels import joint_traces, settled_states
 from .coupling.layout import NSTATE, STATE_NAMES
 from .coupling.plugin import PLUGIN_NAME, block_for
+from .joint import JointParams
 from .params import check, substeps
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -28,6 +29,7 @@ class JointIndex:
     """Where one plugin instance's joint lives in a model and in its full-physics state."""
 
     instance: int
+    params: JointParams
     block: np.ndarray
     motor_qpos: int
     motor_dof: int
@@ -64,19 +66,19 @@ class JointIndex:
 
 def joint_indices(model: mujoco.MjModel) -> list[JointIndex]:
     """One ``JointIndex`` per ``mjjoint.joint`` instance, in instance order."""
-    from .coupling.layout import GEAR, LD, LQ, MD, MQ
+    from .coupling.layout import LD, LQ, MD, MQ
     plugin_start = mujoco.mj_stateSize(model, FULL) - model.npluginstate
     out = []
     for i in range(model.nplugin):
-        blk = block_for(model._address, i)
+        params, blk = block_for(model._address, i)
         motor = np.flatnonzero(model.jnt_qposadr == int(blk[MQ])) if blk[MQ] >= 0 else []
         acts = [a for a in range(model.nu) if len(motor) and
                 model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and model.actuator_trnid[a, 0] == motor[0]]
         act = acts[0] if acts else -1
         out.append(JointIndex(
-            instance=i, block=blk, motor_qpos=int(blk[MQ]), motor_dof=int(blk[MD]),
+            instance=i, params=params, block=blk, motor_qpos=int(blk[MQ]), motor_dof=int(blk[MD]),
             link_qpos=int(blk[LQ]), link_dof=int(blk[LD]),
-            state_start=plugin_start + int(model.plugin_stateadr[i]), gear_ratio=float(blk[GEAR]),
+            state_start=plugin_start + int(model.plugin_stateadr[i]), gear_ratio=params.gear_ratio,
             actuator=act, k_m=float(model.actuator_gear[act, 0]) if act >= 0 else 1.0))
     if not out:
         raise ValueError(f"the model has no {PLUGIN_NAME} plugin instance")
@@ -95,7 +97,7 @@ class Trace:
     thetad: np.ndarray
     tau: np.ndarray        # transmission torque T [N m, link side]
     friction: np.ndarray   # motor friction torque [N m]
-    load_friction: np.ndarray
+    load_friction: np.ndarray  # torque of the link-site terms against the link (bearing friction) [N m]
     states: np.ndarray     # (n, NSTATE) internal plugin states
     gear_ratio: float
     qpos: np.ndarray = field(repr=False, default=None)  # full generalised positions (n, nq)

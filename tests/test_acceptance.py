@@ -12,7 +12,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from mjjoint.diagnosis.loop import ACTS_UNDER, acceptance_p, condition_mask, condition_windows
+from mjjoint.diagnosis.loop import acceptance_p, condition_mask, condition_windows
+from mjjoint.identify.effects import EFFECTS
 
 RATE = 1000.0
 N = 250  # samples per window
@@ -45,7 +46,7 @@ def test_an_effect_acting_in_few_windows_is_accepted_and_a_null_one_is_not():
     test = np.arange(0, n, 2)                       # 20 held-out windows
     rev = [0, 4, 10, 16, 22, 30]                    # 6 of them hold a reversal
     pred = _predictor(n, rev, test)
-    assert "dynamic_friction" in ACTS_UNDER
+    assert EFFECTS["dynamic_friction"].acts_under == "reversal"
     inside, text = condition_mask(pred, "dynamic_friction")
     assert list(test[inside]) == rev and "reversal" in text
     assert condition_mask(pred, "torque_ripple")[0] is None  # acts wherever the motor turns

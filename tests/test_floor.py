@@ -95,10 +95,10 @@ def test_an_effect_behind_a_missing_prerequisite_is_screened_with_it():
 def test_a_rigid_gear_on_a_flexible_rod_is_stable():
     # The rigid gear's spring is set by the hub alone once the rod bends (effects.rigid_gear):
     # with the whole link's inertia it was too stiff, and every link_flexibility screen diverged.
-    from mjjoint.assets.stability import check_model_stability
-    from mjjoint.identify.windows import _compile
+    from mjjoint.assets import load_model
     flexible = Structure.create(("link_flexibility",), ArmSpec(), N)
-    check_model_stability(_compile(*flexible.model_params()))
+    arm, joint = flexible.model_params()
+    load_model(arm=arm, joint=joint)  # checks the model's stability, raising if it is not
 
 
 def test_parameters_left_on_a_bound_are_named_with_the_bound():

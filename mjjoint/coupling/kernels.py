@@ -11,27 +11,26 @@ scheme converges to.
 from __future__ import annotations
 
 import numpy as np
+from numba import literal_unroll
 
 from ..physics.boucwen import boucwen_step
 from ..physics.jit import kernel
-from ..physics.load import bearing_friction
-from ..physics.ripple import ripple_torque
 from ..physics.stribeck import static_friction, static_friction_slope
 from ..physics.transmission import engaged, transmission_stiffness, transmission_torque
 from ..joint import STABILITY_BUDGET
 from ..physics.twosep import twosep_step
-from .layout import (ASYM, AT, B, BACKLASH, BW_A, BW_BETA, BW_GAMMA, BW_N, DAMP, FC, FKIND, FO, FOT,
-                     FP, FRICTION_2SEP, FRICTION_STATIC, FS, GEAR, HYST, K, K1, K2, K3, L_FC, L_VEPS,
-                     L_VISC, LOAD, MU, OMEGA, QR, R_AMP, R_K, R_PHASE, RIPPLE, SHAPE, SIGMA, TP,
-                     VASYM, VEPS, VS, WP, WPL, WSIGN, X, Z1, Z2)
+from .layout import (AT, FO, FOT, FP, FRICTION, FRICTION_2SEP, FRICTION_STATIC, HYSTERESIS, OMEGA,
+                     QR, SITE_TERMS, ADVANCE_TERMS, TP, TRANSMISSION, WP, WPL, WSIGN, X, Z1, Z2)
+
+F, T, H = FRICTION, TRANSMISSION, HYSTERESIS
 
 
 @kernel
 def transmitted(blk, st, q, wq, theta, wtheta):
     """Transmission torque T (Eq. 18) from motor and link positions and velocities."""
-    n = blk[GEAR]
-    return transmission_torque(q / n - theta, wq / n - wtheta, st[X], blk[MU],
-                               blk[K1], blk[K2], blk[K3], blk[DAMP], blk[BACKLASH])
+    n = blk[T.gear_ratio]
+    return transmission_torque(q / n - theta, wq / n - wtheta, st[X], blk[H.mu],
+                               blk[T.k1], blk[T.k2], blk[T.k3], blk[T.damping], blk[T.backlash])
 
 
 # Largest k h^2 / J an explicit spring is given: the stability check's budget (omega h = sqrt(3)).
@@ -59,12 +58,12 @@ def stiffness_limit(blk, st, t, de, in_gap, wq, wtheta, h, hj, hjl):
     """
     if st[FOT] != st[FOT]:
         st[FOT] = t
-    n = blk[GEAR]
+    n = blk[T.gear_ratio]
     r = rate_step(n, h, hj, hjl)
     if r <= 0.0 or in_gap:
         return 0.0
-    a = blk[BW_A] if blk[HYST] != 0.0 else 1.0
-    excess = transmission_stiffness(de, st[X], blk[MU], blk[K1], blk[K2], blk[K3], a) - STABLE_KR / r
+    a = blk[H.a] if blk[H.kind] != 0.0 else 1.0
+    excess = transmission_stiffness(de, st[X], blk[H.mu], blk[T.k1], blk[T.k2], blk[T.k3], a) - STABLE_KR / r
     if excess <= 0.0:
         return 0.0
     # J_rel d(rate)/dt = other - T, and h / J_rel = r / h
@@ -95,50 +94,78 @@ def known_other(st, f):
 
 
 @kernel
+def site_torques(blk, st, q, wq, theta, wtheta):
+    """Sum of the additive terms' generalised forces (motor, link), in declaration order; a term
+    whose kind slot is 0 is absent."""
+    fm = 0.0
+    fl = 0.0
+    for term in literal_unroll(SITE_TERMS):
+        if blk[term[1]] != 0.0:
+            a, b = term[0](blk, term[1], st, term[2], q, wq, theta, wtheta)
+            fm += a
+            fl += b
+    return fm, fl
+
+
+if ADVANCE_TERMS:  # numba cannot unroll an empty tuple
+    @kernel
+    def advance_terms(blk, st, q, wq, theta, wtheta, h):
+        """Step the states of the additive terms that have any, in declaration order."""
+        for term in literal_unroll(ADVANCE_TERMS):
+            if blk[term[1]] != 0.0:
+                term[0](blk, term[1], st, term[2], q, wq, theta, wtheta, h)
+else:
+    @kernel
+    def advance_terms(blk, st, q, wq, theta, wtheta, h):
+        """No additive term has states."""
+        return
+
+
+@kernel
 def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     """One evaluation of the joint at (q, wq, theta, wtheta) with states ``st``.
 
     Returns (fm, fl, T, F, F_L): the generalised forces on the motor and link dofs, the
-    transmission torque as applied, and the motor and load friction as applied. The motor's
+    transmission torque as applied, the motor friction as applied, and the torque the additive
+    link-site terms (the bearing friction) apply against the link. The motor's
     velocity-dependent torques (friction, the 2SEP lag damper, transmission damping) are taken
     linearly implicitly against the motor dof's inertia, ``hj`` = h/J (``implicit_dof``); the
     transmission spring is explicit up to its stability limit (``stiffness_limit``, ``hjl``: the
     link dof's h/J); friction levels and the link side are explicit.
     """
-    n = blk[GEAR]
+    n = blk[T.gear_ratio]
     t = transmitted(blk, st, q, wq, theta, wtheta)
-    de = engaged(q / n - theta, blk[BACKLASH])
-    in_gap = de == 0.0 and blk[BACKLASH] > 0.0  # no torque passes, none of it damped
+    de = engaged(q / n - theta, blk[T.backlash])
+    in_gap = de == 0.0 and blk[T.backlash] > 0.0  # no torque passes, none of it damped
     t += stiffness_limit(blk, st, t, de, in_gap, wq, wtheta, h, hj, hjl)
-    d_eng = 0.0 if in_gap else blk[DAMP]
+    d_eng = 0.0 if in_gap else blk[T.damping]
     # Motor: -T/N - F + ripple. 2SEP's z1 is a position state (no slope); its lag is a one-sided
     # damper, decided on the velocity the step would reach without it.
-    kind = blk[FKIND]
+    kind = blk[F.kind]
     f0 = 0.0
     s0 = 0.0
     if kind == FRICTION_STATIC:
-        f0 = static_friction(wq, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM], blk[VEPS], blk[VASYM])
-        s0 = max(0.0, static_friction_slope(wq, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM],
-                                            blk[VEPS], blk[VASYM]))
+        f0 = static_friction(wq, blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape], blk[F.sigma], blk[F.asym], blk[F.v_eps], blk[F.sigma_asym])
+        s0 = max(0.0, static_friction_slope(wq, blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape], blk[F.sigma], blk[F.asym],
+                                            blk[F.v_eps], blk[F.sigma_asym]))
     elif kind == FRICTION_2SEP:
         f0 = st[Z1]
-    fm = -t / n - f0
-    if blk[RIPPLE] != 0.0:
-        fm += ripple_torque(q, blk[R_AMP], blk[R_K], blk[R_PHASE])
+    sm, sl = site_torques(blk, st, q, wq, theta, wtheta)
+    fm = -t / n - f0 + sm
     gm = -d_eng / (n * n) - s0
     om = known_other(st, fm)
     dwm = implicit_dof(fm, gm, om, hj)
     lag = 0.0
     if kind == FRICTION_2SEP and st[Z2] * (wq + dwm) > 0.0:
-        c = blk[B] * abs(st[Z2])
+        c = blk[F.b] * abs(st[Z2])
         dwm = implicit_dof(fm - c * wq, gm - c, om, hj)
         lag = c * (wq + dwm)
     fric = f0 + s0 * dwm + lag
     fm = fm + gm * dwm - lag
-    # Link: T - F_L, explicit. Its velocity slopes are mild at the rated step, and the link dof's
-    # other forces (the flexible rod's unresolved modes) change too fast for last step's to hold.
-    load = bearing_friction(wtheta, blk[L_FC], blk[L_VISC], blk[L_VEPS]) if blk[LOAD] != 0.0 else 0.0
-    return fm, t - load, t, fric, load
+    # Link: T + the link-site terms, explicit. Their velocity slopes are mild at the rated step, and
+    # the link dof's other forces (the flexible rod's unresolved modes) change too fast for last
+    # step's to hold.
+    return fm, t + sl, t, fric, -sl
 
 
 @kernel
@@ -162,12 +189,13 @@ def joint_advance(blk, st, q, wq, theta, wtheta, h):
     Called after MuJoCo's semi-implicit Euler update, where q_new = q_old + wq h exactly for
     hinge and slide joints, so the step's increments are the new velocities times h.
     """
-    if blk[FKIND] == FRICTION_2SEP:
+    if blk[F.kind] == FRICTION_2SEP:
         friction_step(blk, st, wq, h)
-    if blk[HYST] != 0.0:
-        n = blk[GEAR]
+    if blk[H.kind] != 0.0:
+        n = blk[T.gear_ratio]
         delta = q / n - theta
         st[X] = hysteresis_step(blk, st[X], delta - (wq / n - wtheta) * h, delta)
+    advance_terms(blk, st, q, wq, theta, wtheta, h)
 
 
 @kernel
@@ -190,7 +218,7 @@ def joint_catch_up(blk, st, q, wq, theta, wtheta, t, h, hj, hjl):
         joint_advance(blk, st, q, wq, theta, wtheta, h)
         dwq = wq - st[WP]
         st[FO] = dwq / hj - st[FP] if hj > 0.0 else 0.0
-        n = blk[GEAR]
+        n = blk[T.gear_ratio]
         r = rate_step(n, h, hj, hjl)
         st[FOT] = (dwq / n - (wtheta - st[WPL])) * h / r + st[TP] if r > 0.0 else 0.0
     elif at != at:
@@ -213,8 +241,8 @@ def settled_states(blk, states, t, q, wq, theta, wtheta, h, hj, hjl):
 def friction_step(blk, st, w, h):
     """Advance the 2SEP states in ``st`` over a step of length h ending at motor velocity w."""
     z1, z2, om, qr, ws = twosep_step(st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], w, h,
-                                     blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA],
-                                     blk[K], blk[B], blk[ASYM], blk[VASYM])
+                                     blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape], blk[F.sigma],
+                                     blk[F.k], blk[F.b], blk[F.asym], blk[F.sigma_asym])
     st[Z1] = z1
     st[Z2] = z2
     st[OMEGA] = om
@@ -240,8 +268,8 @@ def friction_history(blk, w, h, st0):
 @kernel
 def hysteresis_step(blk, x, delta_from, delta_to):
     """Bouc-Wen x driven by the deflection moving from ``delta_from`` to ``delta_to`` (past the play)."""
-    de = engaged(delta_to, blk[BACKLASH]) - engaged(delta_from, blk[BACKLASH])
-    return boucwen_step(x, de, blk[BW_A], blk[BW_BETA], blk[BW_GAMMA], blk[BW_N])
+    de = engaged(delta_to, blk[T.backlash]) - engaged(delta_from, blk[T.backlash])
+    return boucwen_step(x, de, blk[H.a], blk[H.beta], blk[H.gamma], blk[H.n])
 
 
 @kernel

@@ -1,63 +1,87 @@
-"""Memory layouts shared by the Python side and the numba callbacks.
+"""Memory layouts shared by the Python side and the numba callbacks, derived from the terms
+(``physics.catalogue``).
 
 ``BLOCK``: the per-instance float64 parameter block (a ``registry`` row, which
-``d->plugin_data[instance]`` caches), built once per model from the instance's MJCF config.
+``d->plugin_data[instance]`` caches), built once per model from the instance's MJCF config:
+the joint addresses, then each term's slots (its kind, then its fields: ``Term.block_values``).
 ``STATE``: the instance's slice of ``d->plugin_state``, i.e. the internal states MuJoCo saves,
-restores, resets and rolls out.
+restores, resets and rolls out: each term's states, then the integrator's memory.
+The kernels read both through the namedtuples below, which numba takes as constants.
 """
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 
-from ..joint import JointParams
-from ..physics.stribeck import StaticFriction
-from ..physics.twosep import TwoSEP
+from ..physics.catalogue import BY_SECTION, TERMS
 
-# Parameter block indices.
-(MQ, MD, LQ, LD,
- FKIND, FC, FS, VS, SHAPE, SIGMA, K, B, ASYM, VEPS,
- GEAR, K1, K2, K3, DAMP, BACKLASH,
- HYST, MU, BW_A, BW_BETA, BW_GAMMA, BW_N,
- LOAD, L_FC, L_VISC, L_VEPS,
- RIPPLE, R_AMP, R_K, R_PHASE,
- VASYM) = range(35)
-BLOCK_LEN = 35
-FRICTION_NONE, FRICTION_STATIC, FRICTION_2SEP = 0.0, 1.0, 2.0
-
-# Plugin state indices: the 2SEP states (twosep.Z1 ... WSIGN), the Bouc-Wen x, then the time
-# the states hold at (NaN: at whatever time they are next evaluated; kernels.joint_catch_up),
-# then the integrator's memory: the motor's velocity and the joint's torque on it at the last
-# evaluation and the other torques on it that the step since implies (kernels.implicit_dof), the
-# link's velocity and the transmission torque at the last evaluation and the other torques on the
-# deflection (kernels.stiffness_limit). NaN: unknown, after a reset or for states set by hand.
-Z1, Z2, OMEGA, QR, WSIGN, X, AT, WP, FP, FO, WPL, TP, FOT = range(13)
-NSTATE = 13
-STATE_NAMES = ("z1", "z2", "omega", "q_r", "w_sign", "x")  # the physical ones, before AT
+# Parameter block: the joint addresses (qpos and dof of the motor and link joints; -1: world).
+MQ, MD, LQ, LD = range(4)
+_starts: dict[str, int] = {}
+_n = 4
+for _t in TERMS:
+    _starts[_t.section] = _n
+    _n += 1 + len(_t.fields)
+BLOCK_LEN = _n
 
 
-def pack(params: JointParams, motor_qpos: int, motor_dof: int, link_qpos: int, link_dof: int) -> np.ndarray:
-    """The parameter block of one plugin instance."""
+def section(name: str):
+    """Absolute block slots of a term: ``kind`` and each field."""
+    t = BY_SECTION[name]
+    o = _starts[name]
+    return namedtuple(f"{name}_slots", ("kind",) + t.fields)(o, *(o + i for i in t.offsets))
+
+
+FRICTION, TRANSMISSION, HYSTERESIS = section("friction"), section("transmission"), section("hysteresis")
+FRICTION_2SEP = BY_SECTION["friction"].kind_code("2sep")
+FRICTION_STATIC = BY_SECTION["friction"].kind_code("static")
+
+# Plugin state: the terms' states, then the time they hold at (NaN: at whatever time they are
+# next evaluated; kernels.joint_catch_up), then the integrator's memory: the motor's velocity
+# and the joint's torque on it at the last evaluation and the other torques on it that the
+# step since implies (kernels.implicit_dof), the link's velocity and the transmission torque at
+# the last evaluation and the other torques on the deflection (kernels.stiffness_limit). NaN:
+# unknown, after a reset or for states set by hand.
+STATE_NAMES = tuple(s for t in TERMS for s in t.states)  # the physical ones, before AT
+_state_starts: dict[str, int] = {}
+for _t in TERMS:
+    _state_starts[_t.section] = sum(len(u.states) for u in TERMS[:TERMS.index(_t)])
+Z1, Z2, OMEGA, QR, WSIGN = (STATE_NAMES.index(s) for s in BY_SECTION["friction"].states)
+X = STATE_NAMES.index("x")
+AT, WP, FP, FO, WPL, TP, FOT = range(len(STATE_NAMES), len(STATE_NAMES) + 7)
+NSTATE = len(STATE_NAMES) + 7
+
+# The additive terms, as the kernels call them: (torque kernel, first block slot, first state).
+SITE_TERMS = tuple((t.torque, _starts[t.section], _state_starts[t.section]) for t in TERMS if t.torque is not None)
+ADVANCE_TERMS = tuple((t.advance, _starts[t.section], _state_starts[t.section])
+                      for t in TERMS if t.advance is not None)
+
+
+def pack(params, motor_qpos: int, motor_dof: int, link_qpos: int, link_dof: int) -> np.ndarray:
+    """The parameter block of one plugin instance for ``JointParams`` ``params``."""
     b = np.zeros(BLOCK_LEN)
     b[[MQ, MD, LQ, LD]] = motor_qpos, motor_dof, link_qpos, link_dof
-    f = params.friction
-    if f is not None:  # the static map's fields, which 2SEP shares
-        b[[FC, FS, VS, SHAPE, SIGMA, ASYM, VASYM]] = f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.sigma_asym
-    if isinstance(f, TwoSEP):
-        b[[FKIND, K, B, VEPS]] = FRICTION_2SEP, f.k, f.b, 1.0
-    elif isinstance(f, StaticFriction):
-        b[[FKIND, VEPS]] = FRICTION_STATIC, f.v_eps
-    t = params.transmission
-    b[GEAR] = params.gear_ratio  # a direct drive: N = 1 and no stiffness, so T = 0
-    b[MU] = 1.0
-    if t is not None:
-        b[[K1, K2, K3, DAMP, BACKLASH]] = t.k1, t.k2, t.k3, t.damping, t.backlash
-    if t is not None and t.hysteresis is not None:
-        h = t.hysteresis
-        b[[HYST, MU, BW_A, BW_BETA, BW_GAMMA, BW_N]] = 1.0, h.mu, h.a, h.beta, h.gamma, h.n
-    if params.load_friction is not None:
-        lf = params.load_friction
-        b[[LOAD, L_FC, L_VISC, L_VEPS]] = 1.0, lf.fc, lf.viscous, lf.v_eps
-    if params.ripple is not None:
-        r = params.ripple
-        b[[RIPPLE, R_AMP, R_K, R_PHASE]] = 1.0, r.amplitude, r.harmonic, r.phase
+    for t in TERMS:
+        o = _starts[t.section]
+        b[o:o + 1 + len(t.fields)] = t.block_values(params.term(t.section))
     return b
+
+
+def steady_states(params, motion: dict[str, np.ndarray]) -> np.ndarray:
+    """Plugin states (n, NSTATE) on the steady branch of the measured ``motion`` (arrays (n,) q,
+    w, theta, wtheta, delta: ``Term.steady``), 0 for a term without ``steady``, held at
+    whatever time they are next evaluated (AT NaN)."""
+    st = np.zeros((len(motion["w"]), NSTATE))
+    st[:, AT] = np.nan
+    for t in TERMS:
+        p = params.term(t.section)
+        if t.steady is not None and p is not None:
+            for name, values in t.steady(p, motion).items():
+                st[:, STATE_NAMES.index(name)] = values
+    return st
+
+
+def term_states(section: str) -> slice:
+    """The plugin-state slots of a term's states."""
+    return slice(_state_starts[section], _state_starts[section] + len(BY_SECTION[section].states))

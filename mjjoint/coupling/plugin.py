@@ -81,12 +81,13 @@ def instance_params(model: mujoco.MjModel) -> list[JointParams]:
     return [JointParams.from_config(_read_config(model._address, i)) for i in range(model.nplugin)]
 
 
-def block_for(m_addr: int, instance: int) -> np.ndarray:
-    """Parse, validate and pack one instance's config (raises ``ValueError`` on bad input)."""
+def block_for(m_addr: int, instance: int) -> tuple[JointParams, np.ndarray]:
+    """Parse, validate and pack one instance's config: its parameters and parameter block
+    (raises ``ValueError`` on bad input)."""
     params = JointParams.from_config(_read_config(m_addr, instance))
     mq, md = _joint_addresses(m_addr, params.motor_joint)
     lq, ld = _joint_addresses(m_addr, params.link_joint)
-    return pack(params, mq, md, lq, ld)
+    return params, pack(params, mq, md, lq, ld)
 
 
 def _attr_span(m_addr: int, instance: int) -> tuple[int, int]:
@@ -124,7 +125,7 @@ def register_model(model_or_address, instance: int | None = None) -> list[int]:
         with _lock:
             r = find_row(registry.KEYS_ADDRESS, registry.CONFIGS_ADDRESS, m_addr, attr, i)
             if r < 0:
-                blk = block_for(m_addr, i)
+                _, blk = block_for(m_addr, i)
                 words = registry.config_words(attr, length)
                 r = _next_row
                 _next_row = (_next_row + 1) % registry.CAPACITY

@@ -45,7 +45,7 @@ a mismatch remains (which signal, how far above its floor, where and under which
 nothing in the catalogue explains the located mismatch. Parameters the final fit left on a
 bound are named as stand-ins.
 
-Effects that act mainly under one operating condition (``ACTS_UNDER``: 2SEP's pre-sliding and
+Effects that act mainly under one operating condition (``Effect.acts_under``: 2SEP's pre-sliding and
 lag, Stribeck's break-away, after motor velocity reversals) are also rank-tested on the held-out
 windows in which that condition occurs, as the measured motor velocity shows it: windows where
 the effect cannot act carry only noise, which drowns a real, concentrated gain in a rank test
@@ -84,37 +84,8 @@ from .features import operating_conditions, reversal_proximity
 from .floor import EXPLAINED_RATIO, Floor, noise_floor
 from .locate import REVERSAL_WINDOW_S, locate
 
-# Which located conditions each effect would explain.
-EVIDENCE: dict[str, tuple[str, ...]] = {
-    "coulomb_friction": ("coulomb", "reversal"),
-    "viscous_friction": ("viscous",),
-    "stribeck_friction": ("stribeck", "reversal"),
-    "dynamic_friction": ("reversal", "hysteresis", "lag"),
-    "friction_asymmetry": ("coulomb",),
-    "viscous_asymmetry": ("viscous",),
-    "load_friction": ("coulomb", "viscous", "reversal"),
-    "gravity": ("sin_theta", "cos_theta"),
-    "linear_stiffness": ("delta", "resonance"),
-    "nonlinear_stiffness": ("delta",),
-    "transmission_hysteresis": ("hysteresis", "small_delta"),
-    "transmission_damping": ("resonance",),
-    "backlash": ("small_delta", "reversal"),
-    "torque_ripple": ("periodic_q",),
-    "link_flexibility": ("resonance",),
-    "input_delay": ("lag",),
-    "input_offset": ("coulomb",),  # a constant force reads as one sign of friction half the time
-}
-
-
 MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
 
-# Effects that act mainly under one operating condition, and that condition: they are also
-# rank-tested on the held-out windows in which it occurs (module doc). Every other effect acts
-# wherever the motor or the gear moves and is tested on all held-out windows only.
-ACTS_UNDER: dict[str, str] = {
-    "dynamic_friction": "reversal",   # pre-sliding hysteresis and frictional lag follow a reversal
-    "stribeck_friction": "reversal",  # break-away at low speed: the motor passes zero speed there
-}
 CONDITION_TEXT = {"reversal": "a motor velocity reversal"}
 
 
@@ -238,7 +209,7 @@ def _n_params(key: str) -> int:
 
 
 def _evidence(key: str, where: dict) -> list[str]:
-    wanted = {c for e in parts(key) for c in EVIDENCE.get(e, ())}
+    wanted = {c for e in parts(key) for c in EFFECTS[e].evidence}
     out = []
     for sig, loc in where.get("signals", {}).items():
         for c in loc.get("conditions", []):
@@ -248,23 +219,11 @@ def _evidence(key: str, where: dict) -> list[str]:
 
 
 def _candidate_variants(effect: str, where: dict) -> list[tuple[dict, dict]]:
-    """(initial values, discrete settings) to screen an effect with, suggested by the evidence.
-
-    The ripple harmonic is not fitted but tried: each signal's residual proposes its own best
-    k (they need not agree: the q residual is dominated by other errors), so every distinct
-    proposal is screened, most-explained first, at most three.
-    """
+    """(initial values, discrete settings) to screen an effect with, suggested by the evidence
+    (``Effect.variants``)."""
     conds = [c for loc in where.get("signals", {}).values() for c in loc.get("conditions", [])]
-    if effect == "torque_ripple":
-        ranked = sorted((c for c in conds if c["name"] == "periodic_q" and c["params"].get("k")),
-                        key=lambda c: -c["score"])
-        ks = list(dict.fromkeys(float(c["params"]["k"]) for c in ranked))[:3] or [1.0]
-        return [({}, {"torque_ripple.harmonic": k}) for k in ks]
-    if effect == "input_delay":
-        lags = [c["params"].get("lag_ms") for c in conds if c["name"] == "lag" and c["significant"]]
-        if lags and lags[0] > 0:
-            return [({"input_delay.delay": min(lags[0] * 1e-3, 0.009)}, {})]
-    return [({}, {})]
+    variants = EFFECTS[effect].variants
+    return [({}, {})] if variants is None else variants(conds)
 
 
 def screened_params(key: str, structure: Structure) -> list[str]:
@@ -610,9 +569,9 @@ def condition_windows(t: np.ndarray, qd: np.ndarray, starts: np.ndarray, length:
 
 def condition_mask(predictor: Predictor, effect: str) -> tuple[np.ndarray | None, str]:
     """Which held-out windows (``predictor.test`` order) hold the condition ``effect`` acts under,
-    and in words; None when the effect has none (``ACTS_UNDER``) or fewer than MIN_HELDOUT
+    and in words; None when the effect has none (``Effect.acts_under``) or fewer than MIN_HELDOUT
     held-out windows hold it (no rank test on them could pass)."""
-    condition = ACTS_UNDER.get(effect)
+    condition = EFFECTS[effect].acts_under
     if condition is None:
         return None, ""
     m, test = predictor.m, predictor.test

@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from ..assets import ArmSpec
@@ -22,66 +20,13 @@ from ..physics.load import LoadFriction
 from ..physics.ripple import TorqueRipple
 from ..physics.stribeck import StaticFriction
 from ..physics.transmission import Transmission
+from ..physics.catalogue import MODULES
 from ..physics.twosep import TwoSEP
+from .effect import Effect, Param
 
-
-@dataclass(frozen=True)
-class Param:
-    """One free parameter: ``name`` is unique across effects (``<effect>.<symbol>``)."""
-
-    name: str
-    initial: float
-    lo: float
-    hi: float
-    log: bool = True
-    unit: str = ""
-    dim: str = ""        # physical dimension, for plants of other scales (see DIMENSIONS)
-
-    def to_unit(self, value: float) -> float:
-        """Map a physical value to the optimiser's coordinate."""
-        return math.log(value) if self.log else value
-
-    def from_unit(self, x: float) -> float:
-        return math.exp(min(x, 700.0)) if self.log else x  # an infinite interval stays finite
-
-    def for_plant(self, plant, scales: dict[str, float] | None = None) -> "Param":
-        """This parameter for a plant of other force/speed/position orders (``scales``, by
-        default the plant's own) and units."""
-        s = plant.scales if scales is None else scales
-        f = DIMENSIONS[self.dim](s["force"], s["speed"], s["position"])
-        unit = plant.unit(self.unit)
-        if f == 1.0 and unit == self.unit:
-            return self
-        return dataclasses.replace(self, initial=self.initial * f, lo=self.lo * f, hi=self.hi * f, unit=unit)
-
-
-# Factor of each dimension for force F, speed V and position X orders (all 1 on the arm).
-DIMENSIONS: dict[str, Callable[[float, float, float], float]] = {
-    "": lambda f, v, x: 1.0,
-    "force": lambda f, v, x: f,
-    "force/speed": lambda f, v, x: f / v,
-    "force/position": lambda f, v, x: f / x,
-    "speed": lambda f, v, x: v,
-    "1/position": lambda f, v, x: 1.0 / x,
-    "inertia": lambda f, v, x: f * x / (v * v),   # F = J a, a ~ V^2 / X
-}
 
 Plant = ArmSpec | DriveSpec
 Model = tuple[Plant, JointParams]
-
-
-@dataclass(frozen=True)
-class Effect:
-    name: str
-    physics: str                       # what it is, in words (printed in reports)
-    params: tuple[Param, ...]
-    apply: Callable[[Model, dict[str, float]], Model]
-    requires: tuple[str, ...] = ()
-    excludes: tuple[str, ...] = ()
-    site: str = "motor"    # where it acts: "motor" (torque on the rotor), "gear", "link" or "sensor"
-    # A sensor effect changes what is measured, not the physics: it maps the predicted signals
-    # (windows x samples arrays by name), given the values and the sample rate.
-    measure: Callable[[dict, dict[str, float], float], dict] | None = None
 
 
 def _friction(model: Model) -> StaticFriction | TwoSEP:
@@ -163,77 +108,166 @@ def _load(model: Model, v: dict[str, float]) -> Model:
     return model[0], dataclasses.replace(model[1], load_friction=lf)
 
 
+def _ripple_variants(conds: list[dict]) -> list[tuple[dict, dict]]:
+    """The ripple harmonic is not fitted but tried: each signal's residual proposes its own best
+    k (they need not agree: the q residual is dominated by other errors), so every distinct
+    proposal is screened, most-explained first, at most three."""
+    ranked = sorted((c for c in conds if c["name"] == "periodic_q" and c["params"].get("k")),
+                    key=lambda c: -c["score"])
+    ks = list(dict.fromkeys(float(c["params"]["k"]) for c in ranked))[:3] or [1.0]
+    return [({}, {"torque_ripple.harmonic": k}) for k in ks]
+
+
+def _delay_variants(conds: list[dict]) -> list[tuple[dict, dict]]:
+    """Started at the lag the residual's cross-correlation locates, inside the bound."""
+    lags = [c["params"].get("lag_ms") for c in conds if c["name"] == "lag" and c["significant"]]
+    if lags and lags[0] > 0:
+        return [({"input_delay.delay": min(lags[0] * 1e-3, 0.009)}, {})]
+    return [({}, {})]
+
+
+def _motor_friction(model: Model):
+    f = model[1].friction
+    return f if f is not None and f.fc > 0 else None
+
+
+def _when(value, read):
+    """``read(value)`` where ``value`` is not None, else None."""
+    return None if value is None else read(value)
+
+
+def _read_hysteresis(model: Model):
+    tr = model[1].transmission
+    bw = None if tr is None else tr.hysteresis
+    return _when(bw, lambda h: {"transmission_hysteresis.mu": h.mu, "transmission_hysteresis.x_u": h.x_ultimate})
+
+
+def _read_ripple(r: TorqueRipple) -> dict[str, float]:
+    return {"torque_ripple.a": r.amplitude * math.cos(r.phase), "torque_ripple.b": r.amplitude * math.sin(r.phase),
+            "torque_ripple.harmonic": r.harmonic}
+
+
+def _gear_value(model: Model, name: str, key: str):
+    tr = model[1].transmission
+    v = None if tr is None else getattr(tr, name)
+    return {key: v} if v else None
+
+
+def _arm_value(model: Model, name: str, key: str):
+    v = getattr(model[0], name, 0.0)
+    return {key: v} if v else None
+
+
+MOTOR_SIGN = ("coulomb", "reversal")
 EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("coulomb_friction", "constant motor friction opposing motion, Fc sgn(w)",
            (Param("coulomb_friction.fc", 0.05, 1e-4, 5.0, unit="N m", dim="force"),),
-           lambda m, v: _set_friction(m, fc=v["coulomb_friction.fc"])),
+           lambda m, v: _set_friction(m, fc=v["coulomb_friction.fc"]),
+           evidence=MOTOR_SIGN, plot="motor_velocity", direct_drive=True,
+           term="friction", read=lambda m: _when(_motor_friction(m), lambda f: {"coulomb_friction.fc": f.fc})),
     Effect("viscous_friction", "motor friction proportional to speed, sigma w",
            (Param("viscous_friction.sigma", 1e-4, 1e-7, 1e-1, unit="N m s/rad", dim="force/speed"),),
-           lambda m, v: _set_friction(m, sigma=v["viscous_friction.sigma"])),
+           lambda m, v: _set_friction(m, sigma=v["viscous_friction.sigma"]),
+           evidence=("viscous",), plot="motor_velocity", direct_drive=True,
+           term="friction", read=lambda m: _when(m[1].friction, lambda f: {"viscous_friction.sigma": f.sigma} if f.sigma > 0 else None)),
     Effect("stribeck_friction", "break-away above the Coulomb level at low speed (Eq. 15)",
            (Param("stribeck_friction.ratio", 1.5, 1.0, 5.0, log=False),
             Param("stribeck_friction.vs", 0.5, 1e-3, 100.0, unit="rad/s", dim="speed")),
-           _stribeck, requires=("coulomb_friction",)),
+           _stribeck, requires=("coulomb_friction",),
+           evidence=("stribeck", "reversal"), acts_under="reversal", plot="motor_velocity", direct_drive=True,
+           term="friction", read=lambda m: _when(_motor_friction(m), lambda f: {"stribeck_friction.ratio": f.fs / f.fc,
+                                                                "stribeck_friction.vs": f.vs} if f.fs > f.fc else None)),
     Effect("dynamic_friction", "2SEP pre-sliding hysteresis and frictional lag (Eqs. 11-14)",
            (Param("dynamic_friction.k", 1000.0, 10.0, 1e5, unit="1/rad", dim="1/position"),
             Param("dynamic_friction.b", 50.0, 0.1, 1e4, unit="N m/rad", dim="force/position")),
-           _dynamic, requires=("coulomb_friction",)),
+           _dynamic, requires=("coulomb_friction",),
+           evidence=("reversal", "hysteresis", "lag"), acts_under="reversal", plot="motor_velocity",
+           direct_drive=True,
+           term="friction", read=lambda m: _when(_motor_friction(m), lambda f: {"dynamic_friction.k": f.k, "dynamic_friction.b": f.b}
+                                if isinstance(f, TwoSEP) else None)),
     Effect("friction_asymmetry", "direction-dependent friction level",
            (Param("friction_asymmetry.ratio", 0.0, -0.9, 0.9, log=False),),
-           _asym, requires=("coulomb_friction",)),
+           _asym, requires=("coulomb_friction",),
+           evidence=("coulomb",), plot="motor_velocity", direct_drive=True,
+           term="friction", read=lambda m: _when(_motor_friction(m), lambda f: {"friction_asymmetry.ratio": f.asym / f.fc}
+                                if f.asym != 0 else None)),
     Effect("viscous_asymmetry", "direction-dependent viscous slope, sigma (1 + r sgn w) w",
            (Param("viscous_asymmetry.ratio", 0.0, -0.9, 0.9, log=False),),
-           lambda m, v: _set_friction(m, sigma_asym=v["viscous_asymmetry.ratio"]), requires=("viscous_friction",)),
+           lambda m, v: _set_friction(m, sigma_asym=v["viscous_asymmetry.ratio"]), requires=("viscous_friction",),
+           evidence=("viscous",), plot="motor_velocity", direct_drive=True,
+           term="friction", read=lambda m: _when(m[1].friction, lambda f: {"viscous_asymmetry.ratio": f.sigma_asym}
+                                if f.sigma > 0 and f.sigma_asym != 0 else None)),
     Effect("load_friction", "output bearing friction Fc sgn(theta') + d_f theta'",
            (Param("load_friction.fc", 0.1, 1e-4, 50.0, unit="N m"),
             Param("load_friction.viscous", 0.01, 1e-5, 10.0, unit="N m s/rad")),
-           _load, site="link"),
+           _load, site="link", evidence=("coulomb", "viscous", "reversal"), plot="link_velocity",
+           term="load_friction", read=lambda m: _when(m[1].load_friction, lambda lf: {"load_friction.fc": lf.fc,
+                                                                 "load_friction.viscous": lf.viscous})),
     Effect("gravity", "gravity torque of the link, l g sin(theta) (Eq. 9)",
            (Param("gravity.g", 9.81, 0.1, 50.0, unit="m/s^2"),),
-           lambda m, v: _arm(m, gravity=v["gravity.g"]), site="link"),
+           lambda m, v: _arm(m, gravity=v["gravity.g"]), site="link",
+           evidence=("sin_theta", "cos_theta"), plot="sin_theta",
+           read=lambda m: _arm_value(m, "gravity", "gravity.g")),
     Effect("linear_stiffness", "elastic gear: torsional spring K delta (Eq. 3)",
            (Param("linear_stiffness.k1", 1e4, 1e2, 1e7, unit="N m/rad"),),
-           lambda m, v: _set_transmission(m, k1=v["linear_stiffness.k1"], damping=0.0), site="gear"),
+           lambda m, v: _set_transmission(m, k1=v["linear_stiffness.k1"], damping=0.0), site="gear",
+           evidence=("delta", "resonance"), plot="loops",
+           term="transmission", read=lambda m: _gear_value(m, "k1", "linear_stiffness.k1")),
     Effect("nonlinear_stiffness", "hardening gear stiffness, k3 delta^3 (Eq. 16)",
            (Param("nonlinear_stiffness.k3", 1e8, 1e4, 1e13, unit="N m/rad^3"),),
            lambda m, v: _set_transmission(m, k3=v["nonlinear_stiffness.k3"]),
-           requires=("linear_stiffness",), site="gear"),
+           requires=("linear_stiffness",), site="gear", evidence=("delta",), plot="loops",
+           term="transmission", read=lambda m: _gear_value(m, "k3", "nonlinear_stiffness.k3")),
     Effect("transmission_hysteresis", "Bouc-Wen hysteretic (elasto-plastic) gear stiffness (Eqs. 16-17)",
            (Param("transmission_hysteresis.mu", 0.6, 0.02, 0.98, log=False),
             Param("transmission_hysteresis.x_u", 2e-3, 1e-6, 0.1, unit="rad")),
-           _hysteresis, requires=("linear_stiffness",), site="gear"),
+           _hysteresis, requires=("linear_stiffness",), site="gear",
+           evidence=("hysteresis", "small_delta"), plot="loops", term="hysteresis", read=_read_hysteresis),
     Effect("transmission_damping", "viscous damping in the gear, D delta' (Eq. 18)",
            (Param("transmission_damping.d", 1.0, 1e-3, 1e3, unit="N m s/rad"),),
            lambda m, v: _set_transmission(m, damping=v["transmission_damping.d"]),
-           requires=("linear_stiffness",), site="gear"),
+           requires=("linear_stiffness",), site="gear", evidence=("resonance",), plot="loops",
+           term="transmission", read=lambda m: _gear_value(m, "damping", "transmission_damping.d")),
     Effect("backlash", "play in the gear: dead zone of the deflection (Fig. 3 (a))",
            (Param("backlash.width", 1e-4, 1e-7, 1e-2, unit="rad"),),
            lambda m, v: _set_transmission(m, backlash=v["backlash.width"]),
-           requires=("linear_stiffness",), site="gear"),
+           requires=("linear_stiffness",), site="gear", evidence=("small_delta", "reversal"), plot="loops",
+           term="transmission", read=lambda m: _gear_value(m, "backlash", "backlash.width")),
     Effect("torque_ripple", "position-periodic motor torque (cogging / eccentricity)",
            (Param("torque_ripple.a", 0.0, -2.0, 2.0, log=False, unit="N m", dim="force"),
             Param("torque_ripple.b", 0.0, -2.0, 2.0, log=False, unit="N m", dim="force")),
-           _ripple),
+           _ripple, evidence=("periodic_q",), plot="motor_revolution", variants=_ripple_variants,
+           term="ripple", read=lambda m: _when(m[1].ripple, _read_ripple)),
     Effect("link_flexibility", "bending of the link rod (distributed mass-spring, Fig. 5 (b))",
            (Param("link_flexibility.ei", 500.0, 1.0, 1e6, unit="N m^2"),),
-           lambda m, v: _arm(m, segments=4, rod_ei=v["link_flexibility.ei"]), site="link"),
+           lambda m, v: _arm(m, segments=4, rod_ei=v["link_flexibility.ei"]), site="link",
+           evidence=("resonance",), plot="spectrum",
+           read=lambda m: {"link_flexibility.ei": m[0].rod_ei} if getattr(m[0], "segments", 0) else None),
     Effect("input_delay", "dead time between commanded and applied motor torque",
            (Param("input_delay.delay", 1e-3, 0.0, 0.01, log=False, unit="s"),),
-           lambda m, v: _arm(m, input_delay=v["input_delay.delay"])),
+           lambda m, v: _arm(m, input_delay=v["input_delay.delay"]),
+           evidence=("lag",), plot="time_shift", direct_drive=True, variants=_delay_variants,
+           read=lambda m: _arm_value(m, "input_delay", "input_delay.delay")),
     Effect("input_offset", "constant bias of the applied motor torque (amplifier or sensor offset)",
            (Param("input_offset.offset", 0.0, -1.0, 1.0, log=False, unit="N m", dim="force"),),
-           lambda m, v: _arm(m, input_offset=v["input_offset.offset"])),
+           lambda m, v: _arm(m, input_offset=v["input_offset.offset"]),
+           # a constant force reads as one sign of friction half the time, and is seen against velocity
+           evidence=("coulomb",), plot="motor_velocity", direct_drive=True,
+           read=lambda m: _arm_value(m, "input_offset", "input_offset.offset")),
     Effect("sensor_skew", "the link encoder read late against the motor encoder and input (time skew)",
            (Param("sensor_skew.lag", 0.0, -0.01, 0.01, log=False, unit="s"),),
-           lambda m, v: m, site="sensor", measure=_skewed),
+           lambda m, v: m, site="sensor", measure=_skewed, plot="time_shift"),
     # Gain before offset (effects apply in catalogue order): tau_measured = gain tau + offset.
     Effect("torque_gain", "gain error of the torque sensor (measured tau only)",
            (Param("torque_gain.gain", 1.0, 0.2, 5.0, unit=""),),
-           lambda m, v: m, site="sensor", measure=lambda p, v, rate: {**p, "tau": p["tau"] * v["torque_gain.gain"]}),
+           lambda m, v: m, site="sensor", measure=lambda p, v, rate: {**p, "tau": p["tau"] * v["torque_gain.gain"]},
+           plot="measured_torque"),
     Effect("torque_offset", "constant bias of the torque sensor (measured tau only)",
            (Param("torque_offset.offset", 0.0, -100.0, 100.0, log=False, unit="N m"),),
            lambda m, v: m, site="sensor",
-           measure=lambda p, v, rate: {**p, "tau": p["tau"] + v["torque_offset.offset"]}),
+           measure=lambda p, v, rate: {**p, "tau": p["tau"] + v["torque_offset.offset"]}, plot="measured_torque"),
+    # The user terms' effects (physics.catalogue).
+    *(e for module in MODULES for e in getattr(module, "EFFECTS", ())),
 )}
 
 # Effects on what the sensors report: the diagnosis considers them only when asked
@@ -241,10 +275,9 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
 SENSOR_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.site == "sensor")
 
 # The effects a direct drive can have: no gear, no output side, no gravity on a level axis.
-# Torque ripple is left out because its harmonics are per motor revolution, which a linear
-# axis measured in metres does not define.
-DRIVE_EFFECTS = ("coulomb_friction", "viscous_friction", "stribeck_friction", "dynamic_friction",
-                 "friction_asymmetry", "viscous_asymmetry", "input_delay", "input_offset")
+# Torque ripple is not one: its harmonics are per motor revolution, which a linear axis
+# measured in metres does not define.
+DRIVE_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.direct_drive)
 
 # Parameters of the minimal structure: inertias (the gear ratio is given, not fitted); a direct
 # drive has only the one, the motor joint's (kg on a slide). The link's inertia is fitted as the

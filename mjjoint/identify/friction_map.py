@@ -33,8 +33,7 @@ from ..physics.twosep import TwoSEP, twosep_force
 from .effects import EFFECTS, Param, check_effects
 from .windows import velocity
 
-FRICTION_EFFECTS = ("coulomb_friction", "viscous_friction", "stribeck_friction", "friction_asymmetry",
-                    "viscous_asymmetry", "dynamic_friction")
+FRICTION_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.term == "friction")
 BASE = ("coulomb_friction", "viscous_friction")
 BLOCK = 0.25  # [s] held-out blocks: long against the friction's memory (2SEP's lag, ms)
 HOLDOUT = 0.25

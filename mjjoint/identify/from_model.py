@@ -2,22 +2,27 @@
 as initial values, and notes on what the effect catalogue cannot hold."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
-from ..joint import JointParams
+from ..joint import SECTIONS, JointParams
 from ..modelfile import ModelFile
-from ..physics.twosep import TwoSEP
+from .effects import EFFECTS
 from .structure import Structure
+
+# Arm fields that effects switch on (the rest are the nominal arm's, kept as they are).
+ARM_FIELDS = ("segments", "rod_ei", "gravity", "input_delay", "input_offset")
 
 
 def structure_from_model(model: ModelFile, gear_ratio: float | None, *, model_name: str = "model",
                          gear_name: str = "gear_ratio") -> tuple[Structure, list[str]]:
     """The structure a model file describes, and notes on what the effect catalogue cannot hold.
 
-    Every switched-on term becomes its effect with the file's values as initial values; the
-    arm is the nominal ArmSpec (inertias, masses, timestep). A ``gear_ratio`` other than the
-    file's is an error. Errors are one-line ``ValueError`` s starting with the input they are
-    about, as the caller names it (``model_name``, ``gear_name``).
+    Every effect that reads a value off the model (``Effect.read``) is in the structure, with
+    those values as initial values; the arm is the nominal ArmSpec (inertias, masses,
+    timestep). A term field the rebuilt structure does not reproduce gets a note. A
+    ``gear_ratio`` other than the file's is an error. Errors are one-line ``ValueError`` s
+    starting with the input they are about, as the caller names it (``model_name``, ``gear_name``).
     """
     if model.arm is None or model.joint is None:
         raise ValueError(f"{model_name}: an MJCF (.xml) model cannot be mapped onto effects; "
@@ -29,55 +34,39 @@ def structure_from_model(model: ModelFile, gear_ratio: float | None, *, model_na
     if gear_ratio is not None and gear_ratio != tr.gear_ratio:
         raise ValueError(f"{gear_name} {gear_ratio:g} differs from the model file's "
                          f"transmission.gear_ratio {tr.gear_ratio:g}")
-    values: dict[str, float] = {"linear_stiffness.k1": tr.k1}
-    settings: dict[str, float] = {}
+    read: dict[str, float] = {}
+    effects = []
+    for e in EFFECTS.values():
+        got = e.read((arm, joint)) if e.read is not None else None
+        if got:
+            effects.append(e.name)
+            read.update(got)
+    fitted = {p.name for e in effects for p in EFFECTS[e].params}
+    values = {k: v for k, v in read.items() if k in fitted}
+    settings = {k: v for k, v in read.items() if k not in fitted}
+    structure = Structure.create(effects, arm, tr.gear_ratio, values, settings)
+    return structure, _unheld((arm, joint), structure.model_params())
+
+
+def _unheld(model, rebuilt) -> list[str]:
+    """Notes on each field of the model that the rebuilt structure does not reproduce."""
     notes = []
-    f = joint.friction
-    if f is not None and f.fc > 0:
-        values["coulomb_friction.fc"] = f.fc
-        if f.fs > f.fc:
-            values.update({"stribeck_friction.ratio": f.fs / f.fc, "stribeck_friction.vs": f.vs})
-        if f.asym != 0:
-            values["friction_asymmetry.ratio"] = f.asym / f.fc
-        if isinstance(f, TwoSEP):
-            values.update({"dynamic_friction.k": f.k, "dynamic_friction.b": f.b})
-    elif f is not None and f.fs > 0:
-        notes.append("friction: break-away without a Coulomb level is not an effect; fs ignored")
-    if f is not None and f.shape != 1.0:
-        notes.append(f"friction.shape={f.shape:g}: the Stribeck effect has shape 1; the shape is not kept")
-    if f is not None and f.sigma > 0:
-        values["viscous_friction.sigma"] = f.sigma
-        if f.sigma_asym != 0:
-            values["viscous_asymmetry.ratio"] = f.sigma_asym
-    if tr.k2 != 0:
-        notes.append(f"transmission.k2={tr.k2:g}: no effect holds a quadratic stiffness term; ignored")
-    if tr.k3 > 0:
-        values["nonlinear_stiffness.k3"] = tr.k3
-    if tr.damping > 0:
-        values["transmission_damping.d"] = tr.damping
-    if tr.backlash > 0:
-        values["backlash.width"] = tr.backlash
-    if tr.hysteresis is not None:
-        bw = tr.hysteresis
-        if (bw.a, bw.n) != (1.0, 1.0) or bw.beta != bw.gamma:
-            notes.append("hysteresis: the effect has A = 1, n = 1, beta = gamma; only mu and x_u are kept")
-        values.update({"transmission_hysteresis.mu": tr.hysteresis.mu,
-                       "transmission_hysteresis.x_u": tr.hysteresis.x_ultimate})
-    if joint.load_friction is not None:
-        values.update({"load_friction.fc": joint.load_friction.fc,
-                       "load_friction.viscous": joint.load_friction.viscous})
-    if joint.ripple is not None:
-        r = joint.ripple
-        values.update({"torque_ripple.a": r.amplitude * math.cos(r.phase),
-                       "torque_ripple.b": r.amplitude * math.sin(r.phase)})
-        settings["torque_ripple.harmonic"] = r.harmonic
-    if arm.gravity > 0:
-        values["gravity.g"] = arm.gravity
-    if arm.segments > 0:
-        values["link_flexibility.ei"] = arm.rod_ei
-        if arm.segments != 4:
-            notes.append(f"arm.segments={arm.segments}: the link_flexibility effect models the rod with 4 segments")
-    if arm.input_delay > 0:
-        values["input_delay.delay"] = arm.input_delay
-    effects = sorted({name.split(".")[0] for name in values})
-    return Structure.create(effects, arm, tr.gear_ratio, values, settings), notes
+    for name in ARM_FIELDS:
+        notes += _differs(f"arm.{name}", getattr(model[0], name), getattr(rebuilt[0], name))
+    for section in SECTIONS:
+        want, got = model[1].term(section), rebuilt[1].term(section)
+        if want is None:
+            continue
+        if got is None or type(got) is not type(want):
+            notes.append(f"{section}: no effect holds this kind of term; it is left out")
+            continue
+        for f in dataclasses.fields(want):
+            if "term" not in f.metadata:
+                notes += _differs(f"{section}.{f.name}", getattr(want, f.name), getattr(got, f.name))
+    return notes
+
+
+def _differs(name: str, value: float, rebuilt: float) -> list[str]:
+    if math.isclose(value, rebuilt, rel_tol=1e-9, abs_tol=0.0):
+        return []
+    return [f"{name}={value:g}: no effect holds it; the structure starts from {rebuilt:g}"]

@@ -30,13 +30,12 @@ from mujoco import rollout as mj_rollout
 from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..coupling.kernels import friction_history, hysteresis_history, joint_traces
-from ..coupling.layout import (ASYM, AT, B, BW_A, BW_BETA, BW_GAMMA, BW_N, FC, FKIND, FRICTION_2SEP, FS, HYST,
-                               NSTATE, QR, SHAPE, SIGMA, VASYM, VS, WSIGN, X, Z1, Z2)
+from ..coupling.layout import X, steady_states, term_states
 from ..assets.stability import check_model_stability
 from ..coupling.mjlog import mujoco_log_silenced
 from ..coupling.plugin import register_model
 from ..params import substeps
-from ..physics.stribeck import steady_state
+from ..physics.twosep import TwoSEP
 from ..sim import FULL, joint_indices
 from .structure import Structure
 
@@ -443,29 +442,37 @@ class Predictor:
             x0[:, 1 + ji.link_qpos] = np.interp(at, samples, m.theta)
             x0[:, 1 + model.nq + ji.link_dof] = np.interp(at, samples, m.thetad)
         # Flexible segments of the link move with the hub at the window start.
-        delta = np.zeros(len(i0)) if m.delta is None else m.delta[i0]
-        states = _steady_internal_states(ji.block, m.qd[i0], delta)
+        states = steady_states(ji.params, self._motion(i0))
         # The internal states are the model's memory of the motion, run from the recording's
         # first sample (on its steady branches) to each window start by the plugin's kernels.
         # Each stacked recording's history starts afresh at its first sample.
         firsts = np.array([a for a, _ in m.segments])
-        start = _steady_internal_states(ji.block, m.qd[firsts],
-                                        np.zeros(len(firsts)) if m.delta is None else m.delta_path[firsts])
-        if ji.block[FKIND] == FRICTION_2SEP:
+        start = steady_states(ji.params, self._motion(firsts, path=True))
+        if isinstance(ji.params.friction, TwoSEP):
             # 2SEP (last reversal, pre-sliding, lag) along the measured motor angle, its noise
             # chatter removed (REVERSAL_BAND), not guessed from the velocity's sign: the step
             # velocity is the path's displacement per sample.
             history = np.concatenate([
                 friction_history(ji.block, np.diff(m.q_path[a:b], prepend=m.q_path[a]) * m.rate, 1.0 / m.rate, s0)
                 for (a, b), s0 in zip(m.segments, start)])
-            states[:, :X] = history[i0, :X]
-        if ji.block[HYST] != 0.0 and m.delta is not None:
+            fs = term_states("friction")
+            states[:, fs] = history[i0, fs]
+        if ji.params.term("hysteresis") is not None and m.delta is not None:
             # Bouc-Wen x along the measured deflection (rate independent: the path fixes it); the
             # loading-branch guess can be off by the whole loop for the entire window.
             states[:, X] = np.concatenate([hysteresis_history(ji.block, m.delta_path[a:b], s0[X])
                                            for (a, b), s0 in zip(m.segments, start)])[i0]
         ji.plugin_states(x0)[:] = states
         return x0
+
+    def _motion(self, i: np.ndarray, path: bool = False) -> dict[str, np.ndarray]:
+        """The measured motion at samples ``i`` (``Term.steady``): with ``path``, the deflection
+        of the noise-free path the histories run on."""
+        m, zero = self.m, np.zeros(len(i))
+        delta = zero if m.delta is None else (m.delta_path if path else m.delta)[i]
+        link = m.theta is not None
+        return {"q": m.q[i], "w": m.qd[i], "theta": m.theta[i] if link else zero,
+                "wtheta": m.thetad[i] if link else zero, "delta": delta}
 
     def _start_states(self, model, ji, delay: float, windows: np.ndarray, skew: float = 0.0) -> np.ndarray:
         """Full MuJoCo states at the starts of ``windows``; for 2SEP, those that start at rest take
@@ -480,7 +487,7 @@ class Predictor:
         resting window.
         """
         i0 = self.starts[windows]
-        lead = self.lead_samples[windows] if ji.block[FKIND] == FRICTION_2SEP else np.zeros(len(i0), int)
+        lead = self.lead_samples[windows] if isinstance(ji.params.friction, TwoSEP) else np.zeros(len(i0), int)
         rows = np.flatnonzero(lead > 0)
         lead = lead[rows]
         flex = self._flexible_rows(model, ji, i0)
@@ -502,7 +509,8 @@ class Predictor:
         for a, b, state in self._rollouts([model] * len(rows), first, ctrl):
             end[a:b] = state[np.arange(b - a), lead[a:b] * sub - 1]  # each at its own window's start
         st, _ = ji.settled(model, end)
-        ji.plugin_states(x0)[rows, :X] = st[:, :X]
+        fs = term_states("friction")
+        ji.plugin_states(x0)[rows, fs] = st[:, fs]
         self.rollouts += len(rows) * (n - 1) / (len(self.starts) * (self.nwin_samples - 1))
         return x0
 
@@ -648,25 +656,6 @@ def _hidden_coordinates(model, ji) -> tuple[np.ndarray, np.ndarray] | None:
     if not vadr or len(qadr) != len(vadr):  # hinge and slide segments only: one qpos per dof
         return None
     return np.array(qadr), np.array(vadr)
-
-
-def _steady_internal_states(blk, qd, delta):
-    """Friction states on the steady sliding branch, Bouc-Wen x on its loading branch."""
-    st = np.zeros((len(qd), NSTATE))
-    st[:, AT] = np.nan  # states of the window's start, whatever its time
-    if blk[FKIND] == FRICTION_2SEP:
-        sg = np.sign(qd)
-        st[:, WSIGN] = sg
-        st[:, Z1] = sg * (blk[FC] + blk[ASYM] * sg)
-        st[:, QR] = 1e6  # far from the last reversal: pre-sliding saturated
-        s = np.array([steady_state(w, blk[FC], blk[FS], blk[VS], blk[SHAPE], blk[SIGMA], blk[ASYM], blk[VASYM])
-                      for w in qd])
-        bw = blk[B] * np.abs(qd)
-        st[:, Z2] = np.where(bw > 0, (s - st[:, Z1]) / np.where(bw > 0, bw, 1.0), 0.0)
-    if blk[HYST] != 0.0:
-        xu = (blk[BW_A] / max(blk[BW_BETA] + blk[BW_GAMMA], 1e-300)) ** (1.0 / blk[BW_N])
-        st[:, X] = np.clip(delta, -xu, xu)
-    return st
 
 
 def _stable(model) -> bool:

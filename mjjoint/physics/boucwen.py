@@ -13,8 +13,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..params import check
 from .jit import kernel
+from .term import Term
 
 
 @kernel
@@ -93,3 +96,15 @@ class BoucWen:
         """Saturation value of x on the loading branch, (A/(beta+gamma))^{1/n}."""
         s = self.beta + self.gamma
         return float("inf") if s <= 0 else (self.a / s) ** (1.0 / self.n)
+
+
+def _steady(bw: BoucWen, motion):
+    """x on the loading branch: the deflection, saturated at x_u."""
+    xu = (bw.a / max(bw.beta + bw.gamma, 1e-300)) ** (1.0 / bw.n)
+    return {"x": np.clip(motion["delta"], -xu, xu)}
+
+
+# Without hysteresis the spring is purely elastic: mu = 1.
+TERM = Term(section="hysteresis", kinds={"boucwen": BoucWen}, site="gear",
+            doc="Bouc-Wen hysteretic share of the gear stiffness (Eqs. 16-17)",
+            states=("x",), absent={"mu": 1.0}, nested_in="transmission", steady=_steady)

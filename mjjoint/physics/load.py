@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from ..params import check
 from .jit import kernel
 from .stribeck import smooth_sign
+from .term import Term
 
 
 @kernel
@@ -36,3 +37,16 @@ class LoadFriction:
 
     def __call__(self, w: float) -> float:
         return bearing_friction(w, self.fc, self.viscous, self.v_eps)
+
+
+@kernel
+def load_torque(blk, o, st, s, q, wq, theta, wtheta):
+    """The term's generalised forces (motor, link): the bearing friction against the link."""
+    return 0.0, -bearing_friction(wtheta, blk[o + P.fc], blk[o + P.viscous], blk[o + P.v_eps])
+
+
+TERM = Term(section="load_friction", kinds={"bearing": LoadFriction}, site="link",
+            doc="output bearing friction, Fc sgn(theta') + d_f theta'", torque=load_torque,
+            stability=lambda lf, motor_inertia, link_inertia: (
+                {}, {"load_friction.v_eps (Coulomb slope)": (lf.fc / lf.v_eps + lf.viscous) / link_inertia}))
+P = TERM.offsets

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 from ..params import check
 from .jit import kernel
+from .term import Term
 
 
 @kernel
@@ -31,3 +32,16 @@ class TorqueRipple:
         if float(self.harmonic) != int(self.harmonic):
             raise ValueError(f"harmonic={self.harmonic!r} must be an integer in [1, 200]")
         check("phase", self.phase, -math.pi, math.pi)
+
+
+@kernel
+def ripple_site_torque(blk, o, st, s, q, wq, theta, wtheta):
+    """The term's generalised forces (motor, link): the ripple on the rotor."""
+    return ripple_torque(q, blk[o + P.amplitude], blk[o + P.harmonic], blk[o + P.phase]), 0.0
+
+
+# The chapter assumes no ripple: absent unless the MJCF names it.
+TERM = Term(section="ripple", kinds={"sine": TorqueRipple}, site="motor",
+            doc="position-periodic motor torque (cogging, eccentricity)", torque=ripple_site_torque,
+            default_on=False)
+P = TERM.offsets

@@ -13,6 +13,10 @@ from dataclasses import dataclass
 from ..params import check
 from .boucwen import BoucWen, restoring_torque
 from .jit import kernel
+from .term import Term, nested
+
+# A harmonic drive's deflection at rated torque [rad], where the stability check takes the stiffness.
+RATED_DEFLECTION = 5e-3
 
 
 @kernel
@@ -59,7 +63,7 @@ class Transmission:
     k3: float = 1.0e8             # [N·m/rad^3]: hardening, tangent k1 + 3 k3 d^2 = 1.75e4 (+75 %) at 5 mrad (Sec. 3.3)
     damping: float = 2.0          # D [N·m·s/rad]: ~3 % damping of the ~38 Hz locked-motor mode
     backlash: float = 0.0         # total dead-zone width [rad]; harmonic drives: ~0 (Sec. 2.2)
-    hysteresis: BoucWen | None = BoucWen()
+    hysteresis: BoucWen | None = nested("hysteresis", BoucWen())
 
     def __post_init__(self) -> None:
         check("gear_ratio", self.gear_ratio, 0.0, lo_open=True)
@@ -76,3 +80,18 @@ class Transmission:
     def torque(self, delta: float, ddelta: float, x: float = 0.0) -> float:
         return transmission_torque(delta, ddelta, x, self.mu, self.k1, self.k2, self.k3,
                                    self.damping, self.backlash)
+
+
+def _stability(tr: Transmission, motor_inertia: float, link_inertia: float):
+    """The spring at ``RATED_DEFLECTION`` and the damper on the reduced inertia of both sides."""
+    n = tr.gear_ratio
+    d = RATED_DEFLECTION
+    k_max = tr.k1 + 2 * tr.k2 * d + 3 * tr.k3 * d * d
+    j_red = 1.0 / (1.0 / link_inertia + 1.0 / (motor_inertia * n * n))
+    return {"transmission.k1/k3 (stiffness)": k_max / j_red}, {"transmission.damping": tr.damping / j_red}
+
+
+# Without a transmission the joint is a direct drive: gear ratio 1 and no spring, so T = 0.
+TERM = Term(section="transmission", kinds={"spring": Transmission}, site="gear",
+            doc="elastic gear: stiffness polynomial, damping and backlash (Eqs. 5-8, 18)",
+            absent={"gear_ratio": 1.0}, stability=_stability)

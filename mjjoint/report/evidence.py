@@ -17,15 +17,10 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy.signal import welch
 
-from ..diagnosis.loop import EVIDENCE
 from ..identify.effects import EFFECTS
 from .compare import Comparison
 from .plots import MEASURED, axis_label, flat, save, style
 
-LOOPS = ("linear_stiffness", "nonlinear_stiffness", "transmission_hysteresis", "transmission_damping", "backlash")
-# Motor friction terms, and a constant input offset, which acts like friction that never reverses.
-MOTOR_FRICTION = ("coulomb_friction", "viscous_friction", "stribeck_friction", "dynamic_friction",
-                  "friction_asymmetry", "viscous_asymmetry", "input_offset")
 MAX_POINTS = 20_000   # scatter points per model: enough to see a shape, few enough for a small PNG
 BINS = 30
 RIPPLE_BINS_PER_CYCLE = 8
@@ -35,7 +30,7 @@ ZOOM_WIDTHS = 5.0     # backlash loops are also drawn within +- this many play w
 
 def evidence_signal(effect: str, where: dict, available, default: str) -> str:
     """The signal whose located conditions point at ``effect`` most strongly (else ``default``)."""
-    wanted = EVIDENCE.get(effect, ())
+    wanted = EFFECTS[effect].evidence
     best, score = default, -1.0
     for sig, loc in where.get("signals", {}).items():
         for c in loc.get("conditions", []):
@@ -47,21 +42,22 @@ def evidence_signal(effect: str, where: dict, available, default: str) -> str:
 def plot_evidence(effect: str, cmp: Comparison, before: str, after: str, where: dict,
                   parameters: dict[str, float], path: Path, default_signal: str) -> Path:
     """The evidence figure of ``effect`` (models ``before`` and ``after`` in ``cmp``)."""
-    if effect in LOOPS:
+    plot = EFFECTS[effect].plot
+    if plot == "loops":
         # The play is a few 0.1 mrad inside loops spanning mrad: show it magnified too.
-        width = parameters.get("backlash.width") if effect == "backlash" else None
+        width = parameters.get(f"{effect}.width")  # a dead zone's width
         fig = _loops(cmp, (before, after), None if width is None else ZOOM_WIDTHS * width)
-    elif effect in ("input_delay", "sensor_skew"):  # a time shift: the residual's cross-correlation
+    elif plot == "time_shift":  # the residual's cross-correlation
         signal = evidence_signal(effect, where, cmp.signals, default_signal)
         fig = _cross_correlation(cmp, (before, after), signal, parameters.get(EFFECTS[effect].params[0].name))
-    elif effect == "link_flexibility":
+    elif plot == "spectrum":
         signal = evidence_signal(effect, where, cmp.signals, default_signal)
         fig = _spectrum(cmp, (before, after), signal)
     else:
         x, xlabel = condition_axis(effect, cmp)
         signal = evidence_signal(effect, where, cmp.signals, default_signal)
-        if effect == "torque_ripple":  # equal bins over the revolution, fine enough for k cycles
-            k = int(parameters.get("torque_ripple.harmonic", 1))
+        if plot == "motor_revolution":  # equal bins over the revolution, fine enough for k cycles
+            k = int(parameters.get(f"{effect}.harmonic", 1))
             edges = np.linspace(0.0, 2 * np.pi, max(BINS, RIPPLE_BINS_PER_CYCLE * k) + 1)
         else:  # equal counts: velocities crowd near zero, where friction changes fastest
             edges = np.unique(np.quantile(x[:, cmp.cost], np.linspace(0, 1, BINS + 1)))
@@ -71,16 +67,18 @@ def plot_evidence(effect: str, cmp: Comparison, before: str, after: str, where: 
 
 
 def condition_axis(effect: str, cmp: Comparison) -> tuple[np.ndarray, str]:
+    """The condition an effect's residual is plotted against (its ``Effect.plot``)."""
     c = cmp.conditions
-    if effect == "gravity":
+    plot = EFFECTS[effect].plot
+    if plot == "sin_theta":
         return np.sin(c["theta"]), "sin(theta) (measured link angle)"
-    if effect == "torque_ripple":
+    if plot == "motor_revolution":
         return np.mod(c["q"], 2 * np.pi), f"q mod 2 pi [{cmp.unit('rad')}] (motor angle within one revolution)"
-    if effect == "load_friction":
+    if plot == "link_velocity":
         return c["thetad"], f"link velocity theta' [{cmp.unit('rad/s')}]"
-    if effect in MOTOR_FRICTION:
+    if plot == "motor_velocity":
         return c["qd"], f"motor velocity q' [{cmp.unit('rad/s')}]"
-    if effect in ("torque_gain", "torque_offset") and "tau" in cmp.measured:  # a torque cell's error grows with tau
+    if plot == "measured_torque" and "tau" in cmp.measured:  # a torque cell's error grows with tau
         return cmp.measured["tau"], f"measured torque tau [{cmp.unit('N m')}]"
     raise ValueError(f"no evidence plot is defined for effect {effect!r}")
 
