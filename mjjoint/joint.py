@@ -161,7 +161,51 @@ def _unmentioned(section: str):
 @functools.lru_cache(maxsize=None)
 def config_keys() -> tuple[str, ...]:
     """Every config attribute the plugin declares to MuJoCo."""
-    return ("motor_joint", "link_joint", *(k for t in TERMS for k in (t.section, *(f"{t.section}.{f}" for f in t.fields))))
+    return ("motor_joint", "link_joint", JOINTS_KEY,
+            *(k for t in TERMS for k in (t.section, *(f"{t.section}.{f}" for f in t.fields))))
+
+
+# One plugin instance may drive several joints: ``joints="motor1:link1 motor2:link2"``, and every
+# other key then holds one value for all of them or one per joint, space-separated.
+JOINTS_KEY = "joints"
+
+
+def group_config(joints: list[JointParams]) -> dict[str, str]:
+    """The config of one instance driving ``joints`` (``split_config`` is its inverse)."""
+    cfgs = [j.to_config() for j in joints]
+    cfg = {JOINTS_KEY: " ".join(f"{c.pop('motor_joint')}:{c.pop('link_joint')}" for c in cfgs)}
+    for key in dict.fromkeys(k for c in cfgs for k in c):
+        values = [c.get(key, "") for c in cfgs]
+        if any(v == "" for v in values):  # a field another kind of the term has
+            values = [v or "nan" for v in values]
+        cfg[key] = values[0] if len(set(values)) == 1 else " ".join(values)
+    return cfg
+
+
+def split_config(cfg: dict[str, str]) -> list[dict[str, str]]:
+    """The single-joint configs of an instance's config: itself, or one per joint of a group."""
+    pairs = cfg.get(JOINTS_KEY, "").split()
+    if not pairs:
+        return [cfg]
+    if "motor_joint" in cfg or "link_joint" in cfg:
+        raise ValueError(f"config key {JOINTS_KEY!r} lists the joints; motor_joint and link_joint must not be given")
+    out = [{} for _ in pairs]
+    for i, pair in enumerate(pairs):
+        motor, sep, link = pair.partition(":")
+        if not sep or not motor or not link:
+            raise ValueError(f"{JOINTS_KEY}: {pair!r} must be motor_joint:link_joint")
+        out[i].update(motor_joint=motor, link_joint=link)
+    for key, value in cfg.items():
+        if key == JOINTS_KEY:
+            continue
+        values = value.split()
+        if len(values) not in (1, len(pairs)):
+            raise ValueError(f"config key {key!r} has {len(values)} values for {len(pairs)} joints (give 1 or {len(pairs)})")
+        for i in range(len(pairs)):
+            v = values[0] if len(values) == 1 else values[i]
+            if v != "nan" or len(values) == 1:
+                out[i][key] = v
+    return out
 
 
 # Semi-implicit Euler with explicit spring and damper forces on one inertia is stable for

@@ -9,6 +9,7 @@ of a ratio compute the same motion and differ only in the joint physics.
 
   single joint     the shipped arm (build_arm defaults): the plugin, 2SEP + Bouc-Wen + load friction
   3-joint arm      mjjoint/assets/mjcf/arm3.xml: three plugin instances
+  3-joint, 1 instance   the same arm with one plugin instance driving the three joints
   dcmotor anchor   the native reference: the single-joint bare arm whose motor actuator is
                    MuJoCo's C <dcmotor> with LuGre friction and cogging (scripts/bench_step.py)
 
@@ -38,12 +39,14 @@ from bench_step import bare_spec, controls, dcmotor_model
 from mujoco import rollout
 
 from mjjoint.assets import ASSETS_DIR, build_arm, load_model
+from mjjoint.assets.serial import build_serial_arm
+from mjjoint.assets.shipped_arms import arm3
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 CARRIED = mujoco.mjtState.mjSTATE_TIME | mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_QVEL
 STEPS, SEGMENT, REPEATS = 1000, 20, 7
 ARM3 = Path(ASSETS_DIR) / "arm3.xml"
-CASES = ("single joint", "3-joint arm", "dcmotor anchor")
+CASES = ("single joint", "3-joint arm", "3-joint, 1 instance", "dcmotor anchor")
 ORDER = [(name, side) for name in CASES for side in ("with", "bare")]  # the worker's dump order
 
 
@@ -57,7 +60,10 @@ def cases() -> dict[str, tuple[mujoco.MjModel, mujoco.MjModel]]:
     """name -> (model with the joint physics, the bare model), in ``CASES`` order."""
     bare = bare_spec().compile()
     arm3_bare = without_plugins(mujoco.MjSpec.from_file(str(ARM3))).compile()
-    pairs = ((load_model(build_arm()), bare), (load_model(ARM3), arm3_bare), (dcmotor_model(), bare))
+    grouped = build_serial_arm(arm3(), one_instance=True)
+    grouped_bare = without_plugins(build_serial_arm(arm3(), one_instance=True)).compile()
+    pairs = ((load_model(build_arm()), bare), (load_model(ARM3), arm3_bare), (load_model(grouped), grouped_bare),
+             (dcmotor_model(), bare))
     return dict(zip(CASES, pairs))
 
 

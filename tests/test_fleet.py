@@ -25,7 +25,7 @@ from mjjoint.cli import main
 from mjjoint.cli.options import NAMES, inputs_from_args
 from mjjoint.excitation import Multisine
 from mjjoint.fleet import resolve
-from mjjoint.fleet.task import FIELDS, Task, failed_row, finished, input_hash
+from mjjoint.fleet.task import Task, failed_row, finished, input_hash
 from mjjoint.identify.structure import Structure
 from mjjoint.modelfile import dump_model_file
 from mjjoint.problem import load_problem

@@ -1,6 +1,7 @@
 """Multi-joint arms: composition through MuJoCo's multibody dynamics, per-joint parameters, I/O."""
 from __future__ import annotations
 
+import dataclasses
 import re
 import tomllib
 from pathlib import Path
@@ -21,8 +22,9 @@ from mjjoint.assets.shipped_arms import SHIPPED, planar_arm2, shipped_xml
 from mjjoint.trace_recording import recording
 from mjjoint.tracking import track
 from mjjoint.cli import main
+from mjjoint.coupling import layout
 from mjjoint.coupling.layout import pack
-from mjjoint.joint import JointParams
+from mjjoint.joint import JointParams, group_config, split_config
 from mjjoint.physics.load import LoadFriction
 from mjjoint.physics.stribeck import StaticFriction
 from mjjoint.physics.transmission import Transmission
@@ -366,3 +368,39 @@ def test_simulate_cli_takes_a_multi_joint_model_file(tmp_path):
     direct = recording(Simulator(read_model_file(model).compile()).run(np.column_stack([rec.joint(1).u] * 2)))
     for j in (1, 2):  # the CLI wrote exactly what the API computes
         assert np.array_equal(rec.joint(j).theta, direct.joint(j).theta)
+
+
+def test_one_instance_driving_every_joint_gives_the_per_joint_instances_traces_bit_for_bit():
+    """One plugin instance listing the joints (``joints="motor1:link1 ..."``, per-joint values
+    space-separated) runs the same physics as one instance per joint, through plain MuJoCo too."""
+    joints = planar_arm2()
+    joints[1] = dataclasses.replace(joints[1], joint=joints[1].joint.replace(
+        friction=StaticFriction(fc=0.02, fs=0.03), load_friction=None))  # other kinds per joint
+    # both through MJCF text, read by plain MuJoCo
+    each = mujoco.MjModel.from_xml_string(build_serial_arm(joints).to_xml())
+    spec = build_serial_arm(joints, one_instance=True)
+    one = mujoco.MjModel.from_xml_string(spec.to_xml())
+    assert (each.nplugin, one.nplugin) == (2, 1) and one.npluginstate == each.npluginstate
+    cfg = dict(spec.plugins[0].config)
+    assert cfg["joints"] == "motor1:link1 motor2:link2" and cfg["friction"] == "2sep static"
+    rng = np.random.default_rng(0)
+    u = rng.uniform(-0.4, 0.4, (400, 2)).repeat(5, axis=0)
+    a, b = Simulator(each).run(u), Simulator(one).run(u)
+    for x, y in zip(a, b):
+        for field in ("q", "theta", "qd", "tau", "friction", "load_friction", "states"):
+            assert np.array_equal(getattr(x, field), getattr(y, field), equal_nan=True), field
+    # reset leaves every joint's states at zero, their time unset
+    data = mujoco.MjData(one)
+    mujoco.mj_resetData(one, data)
+    st = data.plugin_state.reshape(2, -1)
+    assert np.isnan(st[:, layout.AT]).all() and not st[:, :layout.AT].any()
+
+
+def test_a_group_config_with_the_wrong_number_of_values_is_one_line():
+    cfg = group_config([JointParams(motor_joint="motor1", link_joint="link1"),
+                        JointParams(motor_joint="motor2", link_joint="link2")])
+    cfg["friction.fc"] = "0.1 0.2 0.3"
+    with pytest.raises(ValueError, match="'friction.fc' has 3 values for 2 joints"):
+        split_config(cfg)
+    with pytest.raises(ValueError, match="must be motor_joint:link_joint"):
+        split_config({"joints": "motor1 link1"})

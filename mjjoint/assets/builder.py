@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from ..coupling.plugin import PLUGIN_NAME, register, register_model
-from ..joint import GROUND, JointParams
+from ..joint import GROUND, JointParams, split_config
 from ..params import check
 from .stability import check_model_stability
 
@@ -182,10 +182,11 @@ def load_model(source: str | Path | mujoco.MjSpec | None = None, **kwargs) -> mu
     for plugin in spec.plugins:
         if plugin.plugin_name == PLUGIN_NAME:
             try:
-                params = JointParams.from_config(dict(plugin.config))
-                for name in (params.motor_joint, params.link_joint):
-                    if name != GROUND and spec.joint(name) is None:
-                        raise ValueError(f"joint {name!r} named in the config does not exist in the model")
+                for cfg in split_config(dict(plugin.config)):
+                    params = JointParams.from_config(cfg)
+                    for name in (params.motor_joint, params.link_joint):
+                        if name != GROUND and spec.joint(name) is None:
+                            raise ValueError(f"joint {name!r} named in the config does not exist in the model")
             except ValueError as exc:
                 raise ValueError(f"plugin instance {plugin.name!r}: {exc}") from None
     model = spec.compile()

@@ -22,7 +22,7 @@ import mujoco
 import numpy as np
 
 from ..coupling.plugin import PLUGIN_NAME, register
-from ..joint import JointParams
+from ..joint import JointParams, group_config
 from ..params import check
 from .builder import ArmSpec
 from .stability import check_model_stability
@@ -149,10 +149,11 @@ def _cylinder_inertia(mass: float, radius: float, length: float) -> tuple[float,
 
 
 def add_elastic_joint(spec: mujoco.MjSpec, parent: mujoco.MjsBody, i: int, js: JointSpec,
-                      pos=(0.0, 0.0, 0.0)) -> mujoco.MjsBody:
+                      pos=(0.0, 0.0, 0.0), *, plugin: bool = True) -> mujoco.MjsBody:
     """Mount joint ``i`` (housing, rotor, hub, rod, actuator, plugin, sensors) on ``parent``.
 
-    Returns the rod's tip body, where the next joint mounts.
+    Returns the rod's tip body, where the next joint mounts. ``plugin=False`` leaves out its
+    plugin instance (one instance then drives every joint: ``build_serial_arm``).
     """
     axis, direction, pos = np.array(js.axis), np.array(js.direction), np.asarray(pos, float)
     n = max(js.segments, 1)
@@ -206,8 +207,9 @@ def add_elastic_joint(spec: mujoco.MjSpec, parent: mujoco.MjsBody, i: int, js: J
     act.set_to_motor()
     act.gear[0] = js.k_m
     act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
-    plugin = spec.add_plugin(plugin_name=PLUGIN_NAME, name=f"joint{i}")
-    plugin.config = js.joint.replace(motor_joint=f"motor{i}", link_joint=f"link{i}").to_config()
+    if plugin:
+        instance = spec.add_plugin(plugin_name=PLUGIN_NAME, name=f"joint{i}")
+        instance.config = mounted(js, i).to_config()
     for kind, name, joint in ((mujoco.mjtSensor.mjSENS_JOINTPOS, "q", "motor"),
                               (mujoco.mjtSensor.mjSENS_JOINTPOS, "theta", "link"),
                               (mujoco.mjtSensor.mjSENS_JOINTVEL, "qd", "motor"),
@@ -218,18 +220,28 @@ def add_elastic_joint(spec: mujoco.MjSpec, parent: mujoco.MjsBody, i: int, js: J
     return tip
 
 
+def mounted(js: JointSpec, i: int) -> JointParams:
+    """Joint i's physics on its motor and link joints."""
+    return js.joint.replace(motor_joint=f"motor{i}", link_joint=f"link{i}")
+
+
 def build_serial_arm(joints: list[JointSpec], world: World = World(), *,
-                     name: str = "mjjoint serial arm") -> mujoco.MjSpec:
+                     name: str = "mjjoint serial arm", one_instance: bool = False) -> mujoco.MjSpec:
     """An ``MjSpec`` of the serial arm: joint 1 on the world, joint i+1 on tip i.
 
-    Each joint's parameters are checked against the timestep (``check_arm_stability``).
+    ``one_instance``: one plugin instance, ``joints``, drives every joint (its config lists
+    them: ``joint.group_config``), instead of an instance ``joint{i}`` per joint; the physics
+    is the same. Each joint's parameters are checked against the timestep (``check_arm_stability``).
     """
     if not joints or not all(isinstance(j, JointSpec) for j in joints):
         raise ValueError("build_serial_arm needs one or more JointSpec")
     spec = new_spec(world, name)
     parent = spec.worldbody
     for i, js in enumerate(joints, start=1):
-        parent = add_elastic_joint(spec, parent, i, js)
+        parent = add_elastic_joint(spec, parent, i, js, plugin=not one_instance)
+    if one_instance:
+        instance = spec.add_plugin(plugin_name=PLUGIN_NAME, name="joints")
+        instance.config = group_config([mounted(js, i) for i, js in enumerate(joints, start=1)])
     add_home_key(spec)
     check_arm_stability(spec)
     return spec

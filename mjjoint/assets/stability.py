@@ -12,7 +12,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from ..coupling.plugin import PLUGIN_NAME, instance_params
+from ..coupling.plugin import instance_params
 from ..joint import GROUND, stable_timestep
 
 STABILITY_SAMPLES = 16  # random link configurations (besides home) at which M is evaluated
@@ -37,18 +37,16 @@ def apparent_inertias(model: mujoco.MjModel, links: list[str], samples: int = ST
 
 
 def stable_timesteps(model: mujoco.MjModel, samples: int = STABILITY_SAMPLES) -> dict[str, tuple[float, str]]:
-    """Per plugin instance: (largest stable timestep, the term that sets it)."""
-    params = instance_params(model)
-    links = [p.link_joint for p in params if p.link_joint != GROUND]
+    """Per joint (``instance_params``' label): (largest stable timestep, the term that sets it)."""
+    named = instance_params(model)
+    links = [p.link_joint for _, p in named if p.link_joint != GROUND]
     inertia = apparent_inertias(model, links, samples)
 
     def at(name: str) -> float:
         # A side fixed to the world cannot move: it imposes no limit.
         return np.inf if name == GROUND else float(inertia[model.joint(name).dofadr[0]])
 
-    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_PLUGIN, i) or f"{PLUGIN_NAME}[{i}]"
-             for i in range(len(params))]
-    return {name: stable_timestep(p, at(p.motor_joint), at(p.link_joint)) for name, p in zip(names, params)}
+    return {name: stable_timestep(p, at(p.motor_joint), at(p.link_joint)) for name, p in named}
 
 
 def check_model_stability(model: mujoco.MjModel, hint: str = "ArmSpec(timestep=...)") -> None:

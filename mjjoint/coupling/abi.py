@@ -87,6 +87,7 @@ class Offsets:
     m_jnt_dofadr: int
     m_dof_invweight0: int
     m_plugin_stateadr: int
+    m_plugin_statenum: int
     m_plugin_attr: int
     m_plugin_attradr: int
     m_timestep: int
@@ -122,7 +123,8 @@ def offsets() -> Offsets:
         d_plugin_state=dd["plugin_state"], d_plugin_data=dd["plugin_data"],
         m_jnt_type=mm["jnt_type"], m_jnt_qposadr=mm["jnt_qposadr"], m_jnt_dofadr=mm["jnt_dofadr"],
         m_dof_invweight0=mm["dof_invweight0"],
-        m_plugin_stateadr=mm["plugin_stateadr"], m_plugin_attr=mm["plugin_attr"],
+        m_plugin_stateadr=mm["plugin_stateadr"], m_plugin_statenum=mm["plugin_statenum"],
+        m_plugin_attr=mm["plugin_attr"],
         m_plugin_attradr=mm["plugin_attradr"], m_timestep=m_timestep, d_time=d_time,
     )
 

@@ -16,10 +16,13 @@ import numpy as np
 
 from ..physics.catalogue import BY_SECTION, TERMS
 
-# Parameter block: the joint addresses (qpos and dof of the motor and link joints; -1: world).
-MQ, MD, LQ, LD = range(4)
+# Parameter block: the joint addresses (qpos and dof of the motor and link joints; -1: world)
+# and the number of joints the instance drives (joint.JOINTS_KEY; the blocks of its joints
+# follow each other in its registry row).
+MQ, MD, LQ, LD, NJ = range(5)
+MAX_JOINTS = 8  # joints one instance may drive
 _starts: dict[str, int] = {}
-_n = 4
+_n = 5
 for _t in TERMS:
     _starts[_t.section] = _n
     _n += 1 + len(_t.fields)
@@ -58,10 +61,11 @@ ADVANCE_TERMS = tuple((t.advance, _starts[t.section], _state_starts[t.section])
                       for t in TERMS if t.advance is not None)
 
 
-def pack(params, motor_qpos: int, motor_dof: int, link_qpos: int, link_dof: int) -> np.ndarray:
-    """The parameter block of one plugin instance for ``JointParams`` ``params``."""
+def pack(params, motor_qpos: int, motor_dof: int, link_qpos: int, link_dof: int, njoint: int = 1) -> np.ndarray:
+    """The parameter block of one joint for ``JointParams`` ``params``, one of ``njoint`` its
+    plugin instance drives."""
     b = np.zeros(BLOCK_LEN)
-    b[[MQ, MD, LQ, LD]] = motor_qpos, motor_dof, link_qpos, link_dof
+    b[[MQ, MD, LQ, LD, NJ]] = motor_qpos, motor_dof, link_qpos, link_dof, njoint
     for t in TERMS:
         o = _starts[t.section]
         b[o:o + 1 + len(t.fields)] = t.block_values(params.term(t.section))

@@ -30,10 +30,10 @@ import mujoco
 import numpy as np
 from numba import cfunc, njit, types
 
-from ..joint import GROUND, JointParams, config_keys
+from ..joint import GROUND, JointParams, config_keys, split_config
 from . import abi, registry
 from .kernels import joint_catch_up, joint_forces
-from .layout import AT, BLOCK_LEN, LD, LQ, MD, MQ, NSTATE, pack
+from .layout import AT, BLOCK_LEN, LD, LQ, MAX_JOINTS, MD, MQ, NJ, NSTATE, pack
 from .pointers import _addr, f64_at, f64_ptr, f64_ptr_array, field, i32_array, u64_array
 from .registry import find_row, row_matches
 
@@ -76,18 +76,35 @@ def _joint_addresses(m_addr: int, name: str) -> tuple[int, int]:
     return qpos, dof
 
 
-def instance_params(model: mujoco.MjModel) -> list[JointParams]:
-    """The JointParams of every mjjoint.joint instance of a compiled model, in instance order."""
-    return [JointParams.from_config(_read_config(model._address, i)) for i in range(model.nplugin)]
+def instance_joints(m_addr: int, instance: int) -> list[JointParams]:
+    """The JointParams of the joints one instance drives (one, or a group's)."""
+    cfgs = split_config(_read_config(m_addr, instance))
+    if len(cfgs) > MAX_JOINTS:
+        raise ValueError(f"one instance drives at most {MAX_JOINTS} joints, not {len(cfgs)}")
+    return [JointParams.from_config(c) for c in cfgs]
 
 
-def block_for(m_addr: int, instance: int) -> tuple[JointParams, np.ndarray]:
-    """Parse, validate and pack one instance's config: its parameters and parameter block
-    (raises ``ValueError`` on bad input)."""
-    params = JointParams.from_config(_read_config(m_addr, instance))
-    mq, md = _joint_addresses(m_addr, params.motor_joint)
-    lq, ld = _joint_addresses(m_addr, params.link_joint)
-    return params, pack(params, mq, md, lq, ld)
+def instance_params(model: mujoco.MjModel) -> list[tuple[str, JointParams]]:
+    """(label, JointParams) of every joint the model's mjjoint.joint instances drive, in instance
+    order: the instance's name, with its motor joint's for an instance that drives several."""
+    out = []
+    for i in range(model.nplugin):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_PLUGIN, i) or f"{PLUGIN_NAME}[{i}]"
+        joints = instance_joints(model._address, i)
+        out += [(name if len(joints) == 1 else f"{name}:{p.motor_joint}", p) for p in joints]
+    return out
+
+
+def block_for(m_addr: int, instance: int) -> list[tuple[JointParams, np.ndarray]]:
+    """Parse, validate and pack one instance's config: the parameters and parameter block of
+    each joint it drives (raises ``ValueError`` on bad input)."""
+    joints = instance_joints(m_addr, instance)
+    out = []
+    for params in joints:
+        mq, md = _joint_addresses(m_addr, params.motor_joint)
+        lq, ld = _joint_addresses(m_addr, params.link_joint)
+        out.append((params, pack(params, mq, md, lq, ld, len(joints))))
+    return out
 
 
 def _attr_span(m_addr: int, instance: int) -> tuple[int, int]:
@@ -125,12 +142,14 @@ def register_model(model_or_address, instance: int | None = None) -> list[int]:
         with _lock:
             r = find_row(registry.KEYS_ADDRESS, registry.CONFIGS_ADDRESS, m_addr, attr, i)
             if r < 0:
-                _, blk = block_for(m_addr, i)
+                blocks = block_for(m_addr, i)
                 words = registry.config_words(attr, length)
                 r = _next_row
                 _next_row = (_next_row + 1) % registry.CAPACITY
                 registry.keys[r] = 0  # invalidate before the parameters change
-                registry.params[r] = blk
+                registry.params[r] = 0.0
+                for j, (_, blk) in enumerate(blocks):
+                    registry.params[r, j * BLOCK_LEN:(j + 1) * BLOCK_LEN] = blk
                 registry.configs[r] = words
                 registry.keys[r] = (m_addr, attr, length, i)
         rows.append(int(r))
@@ -155,6 +174,15 @@ def _row_for(m_addr: int, d_addr: int, instance: int) -> int:
     return row
 
 
+def _nstate(m_addr, instance):
+    """States of one instance: NSTATE per joint it drives. Called by MuJoCo's compiler only; a
+    config error is reported by init, which fails the model."""
+    try:
+        return NSTATE * len(split_config(_read_config(m_addr, instance)))
+    except Exception:  # noqa: BLE001 - a C caller cannot take a Python exception
+        return NSTATE
+
+
 def _init(m_addr, d_addr, instance):
     return 0 if _row_for(m_addr, d_addr, instance) >= 0 else -1
 
@@ -166,14 +194,15 @@ def _miss(m_addr, d_addr, instance):
 
 
 def _compile_hot_callbacks(off: abi.Offsets, miss):
-    """numba cfuncs for nstate, reset and compute, with the offsets baked in; compute calls
+    """numba cfuncs for reset and compute, with the offsets baked in; compute calls
     ``miss`` (a ctypes callback) for a model instance it finds no parameter row for."""
     d_qpos, d_qvel, d_frc, d_time = off.d_qpos, off.d_qvel, off.d_qfrc_passive, off.d_time
     d_state, d_data = off.d_plugin_state, off.d_plugin_data
-    m_stateadr, m_dt, m_invw = off.m_plugin_stateadr, off.m_timestep, off.m_dof_invweight0
+    m_stateadr, m_statenum = off.m_plugin_stateadr, off.m_plugin_statenum
+    m_dt, m_invw = off.m_timestep, off.m_dof_invweight0
     m_attr, m_attradr = off.m_plugin_attr, off.m_plugin_attradr
     keys_addr, configs_addr = registry.KEYS_ADDRESS, registry.CONFIGS_ADDRESS
-    params_addr, cap = registry.PARAMS_ADDRESS, registry.CAPACITY
+    params_addr, cap, row_len = registry.PARAMS_ADDRESS, registry.CAPACITY, registry.ROW_LEN
 
     @njit(inline="always")
     def config_address(m, instance):
@@ -195,11 +224,11 @@ def _compile_hot_callbacks(off: abi.Offsets, miss):
         return r
 
     @njit(inline="always")
-    def joint_state(m, d, instance, r):
+    def joint_state(m, d, instance, r, j):
         # Raw pointers, not arrays: the kernels take either, and pointers leave numba nothing
         # to reference-count on the way in and out of each kernel call.
-        blk = f64_ptr(params_addr + 8 * BLOCK_LEN * r)
-        adr = i32_array(field(m, m_stateadr), instance + 1)[instance]
+        blk = f64_ptr(params_addr + 8 * (row_len * r + BLOCK_LEN * j))
+        adr = i32_array(field(m, m_stateadr), instance + 1)[instance] + NSTATE * j
         st = f64_ptr(field(d, d_state) + 8 * adr)
         mq, md, lq, ld = int(blk[MQ]), int(blk[MD]), int(blk[LQ]), int(blk[LD])
         qpos = f64_ptr(field(d, d_qpos))
@@ -210,16 +239,14 @@ def _compile_hot_callbacks(off: abi.Offsets, miss):
         wth = qvel[ld] if ld >= 0 else 0.0
         return blk, st, q, wq, th, wth
 
-    @cfunc(types.int32(types.voidptr, types.int32))
-    def nstate(m, instance):
-        return NSTATE
-
     @cfunc(types.void(types.voidptr, types.voidptr, types.voidptr, types.int32))
     def reset(m, plugin_state, plugin_data, instance):
-        st = f64_ptr_array(plugin_state, NSTATE)
-        for i in range(NSTATE):
+        n = i32_array(field(m, m_statenum), instance + 1)[instance]
+        st = f64_ptr_array(plugin_state, n)
+        for i in range(n):
             st[i] = 0.0
-        st[AT] = np.nan  # zero states at whatever time the reset leaves (a keyframe's)
+        for j in range(n // NSTATE):
+            st[NSTATE * j + AT] = np.nan  # zero states at whatever time the reset leaves (a keyframe's)
 
     @cfunc(types.void(types.voidptr, types.voidptr, types.int32, types.int32))
     def compute(m, d, instance, capability):
@@ -231,24 +258,28 @@ def _compile_hot_callbacks(off: abi.Offsets, miss):
             # qacc) rather than guess.
             f64_ptr(field(d, d_frc))[0] = np.nan
             return
-        blk, st, q, wq, th, wth = joint_state(m, d, instance, r)
-        md, ld = int(blk[MD]), int(blk[LD])
         h = f64_at(m, m_dt)
+        t = f64_at(d, d_time)
         invw = f64_ptr(field(m, m_invw))
-        hj = h * invw[md] if md >= 0 else 0.0
-        hjl = h * invw[ld] if ld >= 0 else 0.0
-        joint_catch_up(blk, st, q, wq, th, wth, f64_at(d, d_time), h, hj, hjl)
-        fm, fl = joint_forces(blk, st, q, wq, th, wth, h, hj, hjl)
         frc = f64_ptr(field(d, d_frc))
-        if md >= 0:
-            frc[md] += fm
-        if ld >= 0:
-            frc[ld] += fl
+        nj = int(f64_ptr(params_addr + 8 * row_len * r)[NJ])
+        for j in range(nj):
+            blk, st, q, wq, th, wth = joint_state(m, d, instance, r, j)
+            md, ld = int(blk[MD]), int(blk[LD])
+            hj = h * invw[md] if md >= 0 else 0.0
+            hjl = h * invw[ld] if ld >= 0 else 0.0
+            joint_catch_up(blk, st, q, wq, th, wth, t, h, hj, hjl)
+            fm, fl = joint_forces(blk, st, q, wq, th, wth, h, hj, hjl)
+            if md >= 0:
+                frc[md] += fm
+            if ld >= 0:
+                frc[ld] += fl
 
-    return nstate, reset, compute
+    return reset, compute
 
 
 _INIT = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
+_NSTATE = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int)
 _MISS = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int32)
 
 
@@ -260,7 +291,8 @@ def register() -> None:
             return
         off = abi.offsets()
         miss_cb = _MISS(_miss)
-        nstate, reset, compute = _compile_hot_callbacks(off, miss_cb)
+        reset, compute = _compile_hot_callbacks(off, miss_cb)
+        nstate_cb = _NSTATE(_nstate)
         keys = config_keys()
         attrs = (ctypes.c_char_p * len(keys))(*[k.encode() for k in keys])
         plugin = abi.MjpPlugin()
@@ -271,7 +303,7 @@ def register() -> None:
         plugin.attributes = attrs
         plugin.capabilityflags = int(mujoco.mjtPluginCapabilityBit.mjPLUGIN_PASSIVE)
         init_cb = _INIT(_init)
-        plugin.nstate = nstate.address
+        plugin.nstate = ctypes.cast(nstate_cb, ctypes.c_void_p).value
         plugin.reset = reset.address
         plugin.compute = compute.address
         plugin.init = ctypes.cast(init_cb, ctypes.c_void_p).value
@@ -280,4 +312,4 @@ def register() -> None:
         if slot < 0:
             raise RuntimeError(f"MuJoCo refused to register plugin {PLUGIN_NAME!r}")
         # MuJoCo keeps raw pointers to all of these: they must live as long as the process.
-        _registered[PLUGIN_NAME] = (plugin, attrs, keys, nstate, reset, compute, init_cb, miss_cb)
+        _registered[PLUGIN_NAME] = (plugin, attrs, keys, nstate_cb, reset, compute, init_cb, miss_cb)

@@ -21,20 +21,22 @@ import ctypes
 import numpy as np
 from numba import njit
 
-from .layout import BLOCK_LEN
+from .layout import BLOCK_LEN, MAX_JOINTS
 from .pointers import u64_array
 
 CAPACITY = 4096
 # key columns
 K_MODEL, K_ATTR, K_LEN, K_INSTANCE = range(4)
 NKEY = 4
-# An instance's config (its values, NUL-separated) is 150-300 bytes for the shipped models.
-CONFIG_BYTES = 1024
+# An instance's config (its values, NUL-separated) is 150-300 bytes for one joint of the shipped
+# models, a few times that for an instance that drives several.
+CONFIG_BYTES = 4096
 CONFIG_WORDS = CONFIG_BYTES // 8
 
 keys = np.zeros((CAPACITY, NKEY), dtype=np.uint64)
 configs = np.zeros((CAPACITY, CONFIG_WORDS), dtype=np.uint64)
-params = np.zeros((CAPACITY, BLOCK_LEN))
+params = np.zeros((CAPACITY, MAX_JOINTS * BLOCK_LEN))  # the blocks of an instance's joints
+ROW_LEN = MAX_JOINTS * BLOCK_LEN
 KEYS_ADDRESS = keys.ctypes.data
 CONFIGS_ADDRESS = configs.ctypes.data
 PARAMS_ADDRESS = params.ctypes.data
