@@ -17,7 +17,7 @@ import functools
 from dataclasses import dataclass
 
 from .params import fields_dict, is_number
-from .physics.catalogue import BUILTIN, TERMS
+from .physics.catalogue import TERMS
 from .physics.load import LoadFriction
 from .physics.ripple import TorqueRipple
 from .physics.stribeck import StaticFriction
@@ -26,8 +26,6 @@ from .physics.twosep import TwoSEP
 
 # section -> {kind name: class}; the kind is what the MJCF says, e.g. friction="2sep".
 SECTIONS: dict[str, dict[str, type]] = {t.section: dict(t.kinds) for t in TERMS}
-# The terms JointParams holds in fields of their own; the others live in ``JointParams.extra``.
-JOINT_FIELDS = {t.section for t in BUILTIN}
 # A joint name meaning "fixed to the world": cuts that side free of motion (locked output,
 # Fig. 11; or a spring to ground, Fig. 4).
 GROUND = "world"
@@ -144,6 +142,10 @@ class JointParams:
 
     def _terms(self) -> dict[str, object]:
         return {t.section: self.term(t.section) for t in TERMS}
+
+
+# The terms JointParams holds in fields of their own; the others live in ``JointParams.extra``.
+JOINT_FIELDS = {f.name for f in dataclasses.fields(JointParams)} & {t.section for t in TERMS}
 
 
 def _kind_of(section: str, term: object) -> str:

@@ -77,10 +77,10 @@ def operating_conditions(
     """Per-sample operating conditions from measured motor angle q, link angle theta [rad],
     motor torque u and optionally transmission torque tau.
 
-    Keys: qd [rad/s]; qdd [rad/s^2]; q_mod = q mod 2pi [rad] (for position-periodic effects);
+    Keys: qd [rad/s]; qdd [rad/s^2]; q and q_mod = q mod 2pi [rad] (for position-periodic effects);
     reversal_proximity [s]; u, and tau when given, passed through. With theta (None for a
     direct drive, which has no output side) also: thetad [rad/s]; accel (link acceleration);
-    delta = q/N - theta, abs_delta [rad]; delta_d [rad/s]; sin_theta, cos_theta.
+    delta = q/N - theta, abs_delta [rad]; delta_d [rad/s]; sin_theta, cos_theta; theta [rad].
     """
     dt = sample_period(t)
     signals = {"q": q, "u": u} | ({} if theta is None else {"theta": theta}) | ({} if tau is None else {"tau": tau})
@@ -101,6 +101,7 @@ def operating_conditions(
         "qd": qd,
         # Differentiating the smoothed velocity again smooths twice, which acceleration needs.
         "qdd": smooth(qd, 1),
+        "q": q,
         "q_mod": np.mod(q, 2.0 * np.pi),
         "reversal_proximity": reversal_proximity(t, qd),
         "u": arrays["u"],
@@ -111,7 +112,8 @@ def operating_conditions(
         # Smoothed too, so that "small |delta|" is not decided by quantization steps around zero.
         delta = smooth(q / gear_ratio - theta)
         out |= {"thetad": thetad, "accel": smooth(thetad, 1), "delta": delta, "abs_delta": np.abs(delta),
-                "delta_d": qd / gear_ratio - thetad, "sin_theta": np.sin(theta), "cos_theta": np.cos(theta)}
+                "delta_d": qd / gear_ratio - thetad, "sin_theta": np.sin(theta), "cos_theta": np.cos(theta),
+                "theta": theta}
     if tau is not None:
         out["tau"] = arrays["tau"]
     return out

@@ -44,6 +44,7 @@ from .features import sample_period
 REVERSAL_WINDOW_S = 0.030   # [s]: stick-slip and backlash transients last tens of ms
 SMALL_DELTA_QUANTILE = 0.2  # "small |delta|" = the 20 % of samples closest to zero deflection
 MAX_HARMONIC = 40           # cycles per motor revolution searched for position-periodic effects
+PERIOD_STEPS = 101          # real periods tried within half a cycle of the best whole one
 STRIBECK_SPEEDS = (0.02, 0.05, 0.1, 0.2, 0.35)  # bump widths v, as fractions of the 95th-pct |qd|
 RESONANCE_BAND = 0.1        # relative half-width of the band a resonance's power is counted in
 WELCH_SEGMENTS = 4          # a Welch segment is at most 1/4 of the record: >= 7 averaged at 50 % overlap
@@ -193,17 +194,23 @@ def _concentration(name: str, mask: np.ndarray, text: str) -> _Condition:
     return _Condition(name, evaluate, describe)
 
 
-def _periodic_in_q(q_mod: np.ndarray) -> _Condition:
+def _periodic(name: str, coordinate: str, angle: np.ndarray, first: int = 1) -> _Condition:
+    """Periodic in an angle at k = ``first`` .. MAX_HARMONIC cycles per revolution (the score),
+    the best whole k reported, and the best real k within half a cycle of it (``k_real``: a
+    period need not divide the revolution)."""
+    def explained(k: float, R: np.ndarray) -> np.ndarray:
+        return _explained(_centered_basis(np.column_stack([np.sin(k * angle), np.cos(k * angle)])), R)
+
     def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
-        per_k = np.stack([
-            _explained(_centered_basis(np.column_stack([np.sin(k * q_mod), np.cos(k * q_mod)])), R)
-            for k in range(1, MAX_HARMONIC + 1)
-        ])
-        return per_k.max(axis=0), {"k": int(np.argmax(per_k[:, 0])) + 1}
+        per_k = np.stack([explained(k, R) for k in range(first, MAX_HARMONIC + 1)])
+        k = int(np.argmax(per_k[:, 0])) + first
+        fine = np.linspace(max(k - 0.5, 0.5), k + 0.5, PERIOD_STEPS)
+        k_real = float(fine[np.argmax([explained(f, R[:, :1])[0] for f in fine])])
+        return per_k.max(axis=0), {"k": k, "k_real": round(k_real, 3)}
 
     return _Condition(
-        "periodic_q", evaluate,
-        lambda s, p: f"periodic in q at {p['k']} cycles per revolution ({_explains(s)})",
+        name, evaluate,
+        lambda s, p: f"periodic in {coordinate} at {p['k']} cycles per revolution ({_explains(s)})",
     )
 
 
@@ -378,11 +385,16 @@ def _conditions(
         ("cos_theta", "correlated with cos(theta)"),
         ("accel", "proportional to link acceleration, inertia-like"),
         ("delta", "proportional to delta, stiffness-like"),
+        ("theta", "proportional to theta, like a spring to the ground"),
     ):
         if key in c:
             out.append(_regression(key, c[key], text))
     if "q_mod" in c:
-        out.append(_periodic_in_q(c["q_mod"]))
+        # the unwrapped angle where given: a real number of cycles is periodic in it, not in q mod 2 pi
+        out.append(_periodic("periodic_q", "q", c.get("q", c["q_mod"])))
+    if "theta" in c:
+        # one cycle of theta is sin_theta and cos_theta's
+        out.append(_periodic("periodic_theta", "theta", c["theta"], first=2))
     if "qd" in c:
         qd = c["qd"]
         out.append(_regression("coulomb", np.sign(qd), "follows sign(qd), Coulomb-like"))

@@ -75,7 +75,7 @@ import numpy as np
 from scipy.stats import wilcoxon
 
 from ..assets.stability import check_model_stability
-from ..identify.effects import EFFECTS, SENSOR_EFFECTS, base_params, plant_effects
+from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, plant_effects
 from ..identify.fit import FitResult, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
@@ -101,6 +101,7 @@ class DiagnoseOptions:
     robust_final: bool = True    # the final structure's parameters under the robust loss (step 5)
     robust_refit: bool = True    # each added effect's refit once more under the robust loss (step 4)
     free_all: bool = True        # a material but inconsistent best screen: screen again, all free
+    generic: bool = True         # where no catalogued effect explains a located residual, fit the generic forms it points to
 
 
 @dataclass
@@ -125,14 +126,17 @@ class Step:
 
     @property
     def label(self) -> str:
-        return self.effect + (f" (with {', '.join(self.prerequisites)})" if self.prerequisites else "")
+        text = self.effect + (f" (with {', '.join(self.prerequisites)})" if self.prerequisites else "")
+        causes = EFFECTS[self.effect].causes
+        return text + (f" [a generic form; it arises from {causes}]" if causes else "")
 
     def as_dict(self) -> dict:
         return {"effect": self.effect, "evidence": self.evidence, "where": self.where,
                 "parameters": self.parameters, "fit_before": self.fit_before, "fit_after": self.fit_after,
                 "heldout_gain": self.gain, "screened": self.screened,
                 "indistinguishable_from": self.alternatives, "consistency_test": self.consistency,
-                "screen": self.screen, "prerequisites_added": self.prerequisites}
+                "screen": self.screen, "prerequisites_added": self.prerequisites,
+                "generic": EFFECTS[self.effect].generic, "causes": EFFECTS[self.effect].causes}
 
 
 @dataclass
@@ -250,13 +254,24 @@ def candidates_for(structure: Structure, allowed=None) -> list[str]:
     """The effects to screen on ``structure``: each one it lacks, bundled with the prerequisites
     it lacks too (module doc)."""
     possible = plant_effects(structure.nominal)
-    names = [e for e in possible if e not in SENSOR_EFFECTS] if allowed is None else [e for e in allowed if e in possible]
+    names = ([e for e in possible if e not in SENSOR_EFFECTS and e not in GENERIC] if allowed is None
+             else [e for e in allowed if e in possible])
     out = []
     for e in names:
         missing = [r for r in EFFECTS[e].requires if r not in structure.effects]
         if e not in structure.effects and all(r in possible for r in missing):
             out.append(BUNDLE.join([*missing, e]))
     return out
+
+
+def generic_candidates(structure: Structure, where: dict) -> tuple[str, ...]:
+    """The generic forms (``identify.generic``) the model lacks whose structure a significant
+    located condition shows."""
+    shown = {c["name"] for loc in where.get("signals", {}).values() for c in loc.get("conditions", [])
+             if c["significant"]}
+    possible = plant_effects(structure.nominal)
+    return tuple(e for e in GENERIC if e in possible and e not in structure.effects
+                 and shown.intersection(EFFECTS[e].evidence))
 
 
 def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = DiagnoseOptions(),
@@ -294,6 +309,15 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             # A second look at the same question: each look at half the level keeps the pair at
             # max_p (Bonferroni), so the escalation cannot raise the false-addition rate.
             choice, screen = _decide(predictor, ref, screened, options, floor_cost, options.max_p / 2), "all free"
+        generic = generic_candidates(ref.structure, where) if choice.failed and options.generic else ()
+        if generic:
+            say(f"  no catalogued effect explains the located residual: screening the generic forms it "
+                f"points to ({', '.join(generic)})")
+            g_ref, g_screened = _screen(predictor, current, where, dataclasses.replace(options, candidates=generic),
+                                        say, clock, unstable)
+            g_choice = _decide(predictor, g_ref, g_screened, options, floor_cost)
+            if not g_choice.failed:
+                choice, ref, screened, screen = g_choice, g_ref, g_screened, "generic form"
         best, cand, gain = choice.best, choice.cand, choice.gain
         if choice.failed:
             rejected = (f"the best candidate, {best}, lowers the held-out cost by {100 * gain:.1f} % "

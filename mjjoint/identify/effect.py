@@ -87,6 +87,10 @@ class Effect:
     # (located conditions) -> [(initial values, discrete settings)] to screen it with; one plain
     # variant when None.
     variants: Callable[[list[dict]], list[tuple[dict, dict]]] | None = None
+    # A generic form (identify.generic): screened only where no catalogued effect explains a
+    # located residual; ``causes`` names the physics that produce the form.
+    generic: bool = False
+    causes: str = ""
 
     def __post_init__(self) -> None:
         if self.site not in SITES:

@@ -23,6 +23,7 @@ from ..physics.transmission import Transmission
 from ..physics.catalogue import MODULES
 from ..physics.twosep import TwoSEP
 from .effect import Effect, Param
+from .generic import GENERIC_EFFECTS
 
 
 Plant = ArmSpec | DriveSpec
@@ -266,13 +267,16 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            (Param("torque_offset.offset", 0.0, -100.0, 100.0, log=False, unit="N m"),),
            lambda m, v: m, site="sensor",
            measure=lambda p, v, rate: {**p, "tau": p["tau"] + v["torque_offset.offset"]}, plot="measured_torque"),
-    # The user terms' effects (physics.catalogue).
+    # The open vocabulary (identify.generic), then the user terms' effects (physics.catalogue).
+    *GENERIC_EFFECTS,
     *(e for module in MODULES for e in getattr(module, "EFFECTS", ())),
 )}
 
 # Effects on what the sensors report: the diagnosis considers them only when asked
 # (``--candidates``), since a sensor's gain or skew can stand in for physics.
 SENSOR_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.site == "sensor")
+# The generic forms: screened only where no catalogued effect explains a located residual.
+GENERIC = tuple(e.name for e in EFFECTS.values() if e.generic)
 
 # The effects a direct drive can have: no gear, no output side, no gravity on a level axis.
 # Torque ripple is not one: its harmonics are per motor revolution, which a linear axis

@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import importlib
 
-from . import boucwen, friction, load, ripple, transmission
+from . import boucwen, friction, generic, load, ripple, transmission
 from .jit import TERMS_ENV as ENV, user_term_modules
 from .term import Term
 
-BUILTIN: tuple[Term, ...] = (friction.TERM, transmission.TERM, boucwen.TERM, load.TERM, ripple.TERM)
+BUILTIN: tuple[Term, ...] = (friction.TERM, transmission.TERM, boucwen.TERM, load.TERM, ripple.TERM,
+                             generic.LINK_TERM, generic.MOTOR_TERM)
 
 
 def _load(name: str):
