@@ -24,6 +24,7 @@ from .identify.from_model import structure_from_model
 from .identify.initial import estimate
 from .identify.structure import Structure
 from .identify.windows import Measured, Predictor, WindowDesign
+from .manipulator import arm_model, load_note, loaded_predictor
 from .modelfile import ModelFile
 from .recordings import MultiRecording, Recording, read_recording
 from .recordings.resample import describe as describe_resampling
@@ -48,6 +49,7 @@ class JointProblems:
     source: str
     problems: dict[int, Problem]
     notes: list[str] = field(default_factory=list)
+    arm: str | None = None  # the arm whose other joints' measured motion loads each joint (``Inputs.arm``)
 
 
 @dataclass(frozen=True)
@@ -73,6 +75,9 @@ class Inputs:
     scales: Mapping[str, float] | None = None
     allow_gaps: bool = False
     fit_signals: tuple[str, ...] | None = None  # the signals the cost scores (q, delta, tau); None: all recorded
+    # The arm (a [[joint]] model file or an MJCF of it): each joint's other joints' measured motion
+    # loads it through MuJoCo's multibody dynamics (``manipulator``); None: each joint alone.
+    arm: SerialArmFile | str | Path | None = None
 
 
 def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[Recording | str | Path],
@@ -108,6 +113,8 @@ def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[R
     if inputs.plant != "arm":
         return _drive_problem(recording, inputs, say)
     model = read_model_file(inputs.model) if isinstance(inputs.model, (str, Path)) else inputs.model
+    if model is None and inputs.base is None and inputs.arm is not None:
+        model = _arm_file(inputs.arm)  # a [[joint]] arm file is also where each joint starts
     if _several_joints(inputs, model):
         return _joint_problems(recording, inputs, model, say)
     notes: list[str] = []
@@ -232,7 +239,7 @@ def _drive_problem(recording, inputs: Inputs, say) -> Problem:
 
 def _several_joints(inputs: Inputs, model) -> bool:
     """Whether the inputs alone say the recording has several joints."""
-    return (inputs.joints is not None or isinstance(model, SerialArmFile)
+    return (inputs.joints is not None or isinstance(model, SerialArmFile) or inputs.arm is not None
             or isinstance(inputs.gear_ratio, tuple) or isinstance(inputs.k_m, tuple))
 
 
@@ -266,6 +273,7 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
     joints = inputs.joints or tuple(range(1, n + 1))
     if max(joints) > n:
         raise ValueError(f"{say('joints')} {max(joints)}: {source} holds {n} joints (1-{n})")
+    arm = None if inputs.arm is None else arm_model(inputs.arm, n, say("arm"))
     bases, notes = _starting_models(inputs, model, n, say)
     problems = {}
     for j in joints:
@@ -273,10 +281,27 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
         try:
             measured = Measured.from_recording(rec.joint(j), base.gear_ratio)
             predictor = make_predictor(measured, inputs, say)
+            started = _started(base, measured, model is not None)
+            if arm is not None:
+                predictor = loaded_predictor(measured, started, arm, rec, j, inputs.design, inputs.fit_signals,
+                                             str(inputs.arm))
+                notes.append((j, load_note(predictor)))
         except ValueError as exc:
             raise ValueError(f"joint {j}: {exc}") from None
-        problems[j] = Problem(f"{source} joint {j}", predictor, _started(base, measured, model is not None), [])
-    return JointProblems(source, problems, [f"joint {j}: {m}" for j, m in notes if j in joints])
+        problems[j] = Problem(f"{source} joint {j}", predictor, started, [])
+    return JointProblems(source, problems, [f"joint {j}: {m}" for j, m in notes if j in joints],
+                         None if arm is None else str(inputs.arm))
+
+
+def _arm_file(arm) -> SerialArmFile | None:
+    """The arm's [[joint]] model file, read, or None (an MJCF; errors are ``arm_model``'s)."""
+    if isinstance(arm, SerialArmFile):
+        return arm
+    path = Path(arm)
+    if path.suffix.lower() not in (".toml", ".yaml", ".yml") or not path.is_file():
+        return None
+    found = read_model_file(path)
+    return found if isinstance(found, SerialArmFile) else None
 
 
 def _starting_models(inputs: Inputs, model, n: int, say) -> tuple[list[Structure], list[tuple[int, str]]]:

@@ -264,6 +264,10 @@ def _sg_window(dt: float) -> int:
 class Predictor:
     """Windowed predictions of one recording for any number of model structures."""
 
+    # What the columns of ``_controls`` set each step (mujoco.mjtState bits); a subclass that
+    # applies more per step (``manipulator.LoadedPredictor``: a known load) extends both.
+    control_spec = int(mujoco.mjtState.mjSTATE_CTRL)
+
     def __init__(self, measured: Measured, design: WindowDesign = WindowDesign(), nthread: int | None = None,
                  fit_signals: tuple[str, ...] | None = None):
         """``fit_signals``: the measured signals the cost scores (default all of SIGNALS the
@@ -304,6 +308,11 @@ class Predictor:
         self.meas = meas
         self.rollouts = 0.0  # in full-recording equivalents
         self._scratch: dict = {}  # rollout MjData per model signature (_datas)
+
+    def on(self, measured: Measured) -> "Predictor":
+        """A predictor of the same model kind and windows for other measurements (a twin of the
+        recording, ``diagnosis.floor``), scoring every signal they hold."""
+        return Predictor(measured, self.design, self.nthread)
 
     # ---- measured ----------------------------------------------------------------------
     def measured_windows(self) -> dict[str, np.ndarray | None]:
@@ -398,8 +407,8 @@ class Predictor:
         for a in range(0, nrow, chunk):
             b = min(a + chunk, nrow)
             with mujoco_log_silenced():
-                mj_rollout.rollout(models[a:b], datas, x0[a:b], ctrl[a:b], state=state[:b - a],
-                                   sensordata=sens[:b - a], persistent_pool=True)
+                mj_rollout.rollout(models[a:b], datas, x0[a:b], ctrl[a:b], control_spec=self.control_spec,
+                                   state=state[:b - a], sensordata=sens[:b - a], persistent_pool=True)
             yield a, b, state[:b - a]
 
     def _datas(self, model) -> list:
