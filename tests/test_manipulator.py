@@ -8,6 +8,7 @@ its recording by NRMSE ~1 (docs/multijoint.md). Both joints track three sines ea
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import json
 
@@ -18,12 +19,15 @@ from test_multijoint_diagnose import ARM_TOML, BACKLASH, FAST, references, run_t
 
 from mjjoint.assets import load_model
 from mjjoint.assets.serial import build_serial_arm
-from mjjoint.assets.serial_file import read_model_file
+from mjjoint.assets.serial_file import SerialArmFile, read_model_file
+from mjjoint.assets.shipped_arms import arm3
 from mjjoint.cli import main
 from mjjoint.identify.fit import evaluate
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.problem import Inputs, load_problem
+from mjjoint.sim import Simulator
 from mjjoint.trace_recording import recording, write_traces_csv
+from mjjoint.tracking import track
 
 YAW = "axis = [0.0, 0.0, 1.0]\ndirection = [1.0, 0.0, 0.0]"
 PLANAR_TOML = ARM_TOML.replace(YAW, "axis = [0.0, 1.0, 0.0]\ndirection = [0.0, 0.0, -1.0]")
@@ -70,6 +74,28 @@ def test_with_the_other_joints_measured_motion_a_joint_view_predicts_to_the_wind
             assert miss[s] > 0.8, (j, s, miss)
         for s in ("q", "theta", "delta", "tau"):
             assert hit[s] < 1.5 * floor[s], (j, s, hit, floor)
+
+
+def test_on_the_shipped_3_joint_arm_with_rigid_links_every_joint_is_predicted_to_the_windows_floor():
+    """arm3's bodies and drives (yaw, then shoulder and elbow pitch on parallel axes) with rigid
+    rods, all three joints tracking their sines: alone, the elbow misses by NRMSE ~1 and the yaw
+    joint's torque by > 0.5; with the measured motion of the others each joint is within 2x the
+    view's error with the others locked (with the shipped flexible rods the view itself is not
+    exact: docs/multijoint.md)."""
+    arm = SerialArmFile(tuple(dataclasses.replace(js, segments=0) for js in arm3()))
+    gains = {"kp": [0.1, 0.2, 0.2], "kd": 0.004}
+    rec = recording(track(Simulator(arm.compile()), references(3), **gains))
+    for j in (1, 2, 3):
+        spec = build_serial_arm(list(arm.joints), arm.world)
+        for k in {1, 2, 3} - {j}:
+            lock(spec, f"motor{k}", f"link{k}")
+        still = recording(track(Simulator(load_model(spec)), references(3, moving=[j - 1]), **gains)).joint(j)
+        alone, loaded = _problem(rec, arm, j), _problem(rec, arm, j, arm=arm)
+        floor = _nrmse(Predictor(Measured.from_recording(still, alone.base.gear_ratio), DESIGN), alone.base)
+        miss, hit = _nrmse(alone.predictor, alone.base), _nrmse(loaded.predictor, loaded.base)
+        assert miss["tau"] > {1: 0.5, 2: 0.15, 3: 0.9}[j], (j, miss)
+        for s in ("q", "theta", "delta", "tau"):
+            assert hit[s] < 2 * floor[s], (j, s, hit, floor)
 
 
 def test_the_load_vanishes_when_the_other_joints_are_locked(arm):
