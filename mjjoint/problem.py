@@ -4,7 +4,8 @@
 from effect names or a model file (its terms mapped onto effects, its values as initial values),
 and gives a ``Problem``; a multi-joint recording gives ``JointProblems``, one single-joint
 problem per selected joint, each from that joint's starting model (``[[joint]]`` model files:
-``assets.joint_view``). The command line and the Python API (``mjjoint.fit``,
+``assets.joint_view``), loaded, given ``Inputs.arm``, by the other joints' measured motion
+(``manipulator``). The command line and the Python API (``mjjoint.fit``,
 ``mjjoint.diagnose``) both build their problems here; ``names`` lets each name its own inputs
 in the one-line ``ValueError`` messages (``gear_ratio`` or ``--gear-ratio``).
 """
@@ -284,13 +285,18 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
             started = _started(base, measured, model is not None)
             if arm is not None:
                 predictor = loaded_predictor(measured, started, arm, rec, j, inputs.design, inputs.fit_signals,
-                                             str(inputs.arm))
+                                             _arm_name(inputs.arm))
                 notes.append((j, load_note(predictor)))
         except ValueError as exc:
             raise ValueError(f"joint {j}: {exc}") from None
         problems[j] = Problem(f"{source} joint {j}", predictor, started, [])
     return JointProblems(source, problems, [f"joint {j}: {m}" for j, m in notes if j in joints],
-                         None if arm is None else str(inputs.arm))
+                         None if arm is None else _arm_name(inputs.arm))
+
+
+def _arm_name(arm) -> str:
+    """The arm as messages name it: its path, or "the arm model" when given as an object."""
+    return str(arm) if isinstance(arm, (str, Path)) else "the arm model"
 
 
 def _arm_file(arm) -> SerialArmFile | None:

@@ -135,6 +135,7 @@ def test_a_twin_of_a_loaded_joint_keeps_the_load(arm):
     (["--arm", "{missing}"], "--arm {missing}: no such file"),
     (["--arm", "{toml}", "--joint", "3"], "--joint 3: {csv} holds 2 joints (1-2)"),
     (["--arm", "{xml}"], "--arm {xml}: "),
+    (["--arm", "{toml}", "--joint", "2", "--columns", "theta1=theta9"], "theta9"),
 ])
 def test_bad_arm_options_fail_in_one_line_with_exit_2(arm, tmp_path, capsys, argv, message):
     single = tmp_path / "single.toml"

@@ -5,7 +5,9 @@ single-joint fit or diagnosis runs on it from that joint's starting model (``pro
 ``--base`` with the joint's ``--gear-ratio``, one value for all joints or one per joint; a
 single-joint model file used for every joint; or a ``[[joint]]`` model file whose joint j is
 seen as the single arm with the rest of the arm frozen as a rigid load, ``assets.joint_view``).
-The other joints' motion is then a load the model lacks: docs/multijoint.md says when that matters.
+The other joints' motion is then a load the model lacks (docs/multijoint.md says when that
+matters), unless ``--arm`` gives the arm: then MuJoCo computes that load from their measured
+motion and each joint's predictor applies it (``manipulator``).
 
 Output: DIR/joint{j}/ holds the usual files of that joint; DIR/diagnosis.json (or fit.json)
 gathers them under "joints", and DIR/index.html links them.
