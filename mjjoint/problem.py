@@ -223,9 +223,10 @@ def _from_model(model: ModelFile, gear_ratio: float | None, say) -> tuple[Struct
 
 def _drive_problem(recording, inputs: Inputs, say) -> Problem:
     """A direct drive (plant linear or rotary): its inertia, then the effects listed."""
-    if inputs.model is not None:
-        raise ValueError(f"{say('plant')} {inputs.plant}: a direct drive starts from {say('base')}, "
-                         f"not a {say('model')} file")
+    if inputs.model is not None or inputs.arm is not None:
+        given = say("model") if inputs.model is not None else say("arm")
+        raise ValueError(f"{say('plant')} {inputs.plant}: a direct drive starts from {say('base')}; "
+                         f"{given} does not apply")
     effects = () if inputs.base is None else _effects(inputs.base, say, plant_effects(DriveSpec()))
     recs = [_read(r, inputs, 1.0, inputs.k_m) for r in _each(recording)]
     if not all(isinstance(rec, Recording) for rec in recs):
