@@ -25,7 +25,7 @@ from .identify.from_model import structure_from_model
 from .identify.initial import estimate
 from .identify.structure import Structure
 from .identify.windows import Measured, Predictor, WindowDesign
-from .manipulator import arm_model, load_note, loaded_predictor
+from .manipulator import arm_model, arm_predictor, load_note
 from .modelfile import ModelFile
 from .recordings import MultiRecording, Recording, read_recording
 from .recordings.resample import describe as describe_resampling
@@ -285,8 +285,8 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
             predictor = make_predictor(measured, inputs, say)
             started = _started(base, measured, model is not None)
             if arm is not None:
-                predictor = loaded_predictor(measured, started, arm, rec, j, inputs.design, inputs.fit_signals,
-                                             _arm_name(inputs.arm))
+                predictor = arm_predictor(measured, started, _arm_file(inputs.arm), arm, rec, j, inputs.design,
+                                          inputs.fit_signals, _arm_name(inputs.arm))
                 notes.append((j, load_note(predictor)))
         except ValueError as exc:
             raise ValueError(f"joint {j}: {exc}") from None

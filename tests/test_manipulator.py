@@ -24,6 +24,8 @@ from mjjoint.assets.shipped_arms import arm3
 from mjjoint.cli import main
 from mjjoint.identify.fit import evaluate
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
+from mjjoint.manipulator import ArmPredictor, LoadedPredictor, arm_model, coupling_load
+from mjjoint.manipulator.whole import arm_for
 from mjjoint.problem import Inputs, load_problem
 from mjjoint.sim import Simulator
 from mjjoint.trace_recording import recording, write_traces_csv
@@ -45,6 +47,11 @@ def arm(tmp_path_factory):
             "csv": write_traces_csv(d / "arm.csv", traces)}
 
 
+def _compiled(structure):
+    from mjjoint.assets.plant import build_plant
+    return build_plant(*structure.model_params()).compile()
+
+
 def _nrmse(predictor, structure) -> dict[str, float]:
     return evaluate(predictor, structure)[3]
 
@@ -55,25 +62,31 @@ def _problem(rec, model, j, arm=None):
     return jp.problems[j]
 
 
-def test_with_the_other_joints_measured_motion_a_joint_view_predicts_to_the_windows_floor(arm):
+def test_with_the_other_joints_measured_motion_a_joint_predicts_to_the_windows_floor(arm, tmp_path):
     """At the true values, no fit: the view alone misses by NRMSE ~1 when the other joint
-    moves; with the load of its measured motion it predicts as well as the view of the arm with
+    moves; with the other joint's measured motion, inside the whole arm (a [[joint]] file) or
+    as the load it puts on the view (an MJCF), it predicts as well as the view of the arm with
     the other joint locked, where the view is exact (the windows' own error: differentiated start
     velocities), within 1.5x."""
     model, rec = arm["model"], arm["rec"]
+    xml = tmp_path / "arm.xml"
+    xml.write_text(build_serial_arm(list(model.joints), model.world).to_xml())
     for j, other in ((1, 2), (2, 1)):
-        alone, loaded = _problem(rec, model, j), _problem(rec, model, j, arm=model)
-        assert type(alone.predictor) is Predictor and loaded.predictor.load
+        alone = _problem(rec, model, j)
+        assert type(alone.predictor) is Predictor
         spec = build_serial_arm(list(model.joints), model.world)
         lock(spec, f"motor{other}", f"link{other}")
         still = recording(run_track(load_model(spec), references(2, moving=[j - 1]))).joint(j)
         floor = _nrmse(Predictor(Measured.from_recording(still, alone.base.gear_ratio), DESIGN), alone.base)
         miss = _nrmse(alone.predictor, alone.base)
-        hit = _nrmse(loaded.predictor, loaded.base)
         for s in ("delta", "tau"):
             assert miss[s] > 0.8, (j, s, miss)
-        for s in ("q", "theta", "delta", "tau"):
-            assert hit[s] < 1.5 * floor[s], (j, s, hit, floor)
+        for given, kind in ((model, ArmPredictor), (xml, LoadedPredictor)):
+            loaded = _problem(rec, model, j, arm=given)
+            assert type(loaded.predictor) is kind
+            hit = _nrmse(loaded.predictor, loaded.base)
+            for s in ("q", "theta", "delta", "tau"):
+                assert hit[s] < 1.5 * floor[s], (j, kind, s, hit, floor)
 
 
 def test_on_the_shipped_3_joint_arm_with_rigid_links_every_joint_is_predicted_to_the_windows_floor():
@@ -98,6 +111,22 @@ def test_on_the_shipped_3_joint_arm_with_rigid_links_every_joint_is_predicted_to
             assert hit[s] < 2 * floor[s], (j, s, hit, floor)
 
 
+def test_on_the_shipped_3_joint_arm_with_flexible_rods_every_joint_is_predicted_inside_the_arm():
+    """arm3 as shipped: the rods' bending, which no encoder measures, is simulated inside the
+    arm. Alone the joints miss by NRMSE 0.8-1 in tau (and do not reach the floor even with the
+    others locked: their view cannot hold a flexible rod carrying, or carried by, the rest);
+    inside the arm every joint's tau is within 0.15 and at least 5x better (measured 0.035,
+    0.007, 0.10: docs/multijoint.md)."""
+    arm = SerialArmFile(tuple(arm3()))
+    rec = recording(track(Simulator(arm.compile()), references(3), kp=[0.1, 0.2, 0.2], kd=0.004))
+    for j in (1, 2, 3):
+        alone, inside = _problem(rec, arm, j), _problem(rec, arm, j, arm=arm)
+        miss, hit = _nrmse(alone.predictor, alone.base), _nrmse(inside.predictor, inside.base)
+        assert miss["tau"] > 0.75, (j, miss)
+        for s in ("delta", "tau"):
+            assert hit[s] < min(0.15, miss[s] / 5), (j, s, hit, miss)
+
+
 def test_the_load_vanishes_when_the_other_joints_are_locked(arm):
     """The view is the arm with the other joints locked at home, so the arm adds nothing then:
     the load is below 1e-5 of the transmission torque (the lock's slack moves the other joint
@@ -106,9 +135,10 @@ def test_the_load_vanishes_when_the_other_joints_are_locked(arm):
     spec = build_serial_arm(list(model.joints), model.world)
     lock(spec, "motor1", "link1")
     rec = recording(run_track(load_model(spec), references(2, moving=[1])))
-    p = _problem(rec, model, 2, arm=model).predictor
-    assert set(p.load) == {"motor", "link"}
-    for f in p.load.values():
+    view = _problem(rec, model, 2).base
+    _, load = coupling_load(arm_model(model, 2), _compiled(view), rec, 2)
+    assert set(load) == {"motor", "link"}
+    for f in load.values():
         assert np.sqrt(np.mean(f ** 2)) < 1e-5 * np.sqrt(np.mean(rec.joint(2).tau ** 2))
 
 
@@ -116,17 +146,46 @@ def test_an_mjcf_of_the_arm_gives_the_same_load_as_its_model_file(arm, tmp_path)
     model, rec = arm["model"], arm["rec"]
     xml = tmp_path / "arm.xml"
     xml.write_text(build_serial_arm(list(model.joints), model.world).to_xml())
-    a = _problem(rec, model, 2, arm=model).predictor.load
+    view = _compiled(_problem(rec, model, 2).base)
+    _, a = coupling_load(arm_model(model, 2), view, rec, 2)
     b = _problem(rec, model, 2, arm=xml).predictor.load
     assert a.keys() == b.keys()
     for k in a:
         np.testing.assert_allclose(b[k], a[k], rtol=1e-6, atol=1e-9 * np.abs(a[k]).max())
 
 
-def test_a_twin_of_a_loaded_joint_keeps_the_load(arm):
-    p = _problem(arm["rec"], arm["model"], 2, arm=arm["model"]).predictor
-    twin = p.on(p.m)
-    assert type(twin) is type(p) and twin.load is p.load
+def test_a_twin_of_a_joint_in_the_arm_keeps_the_arm_or_the_load(arm, tmp_path):
+    xml = tmp_path / "arm.xml"
+    xml.write_text(build_serial_arm(list(arm["model"].joints), arm["model"].world).to_xml())
+    inside = _problem(arm["rec"], arm["model"], 2, arm=arm["model"]).predictor
+    twin = inside.on(inside.m)
+    assert type(twin) is ArmPredictor and (twin.arm, twin.j, twin.motion) == (inside.arm, 2, inside.motion)
+    loaded = _problem(arm["rec"], arm["model"], 2, arm=xml).predictor
+    twin = loaded.on(loaded.m)
+    assert type(twin) is LoadedPredictor and twin.load is loaded.load
+
+
+def test_a_structure_moves_joint_j_of_the_arm_by_its_change_from_the_view(arm):
+    """What the fit changes in the single-joint structure lands on joint j of the arm: its
+    physics, a body value by the same difference, gravity by the same ratio; the other joint
+    stays as it was."""
+    model = arm["model"]
+    view = _problem(arm["rec"], model, 2).base
+    single, joint = view.model_params()
+    moved = dataclasses.replace(single, tip_mass=single.tip_mass + 0.2, motor_inertia=2 * single.motor_inertia,
+                                gravity=0.5 * single.gravity)
+    k1 = dataclasses.replace(joint, transmission=dataclasses.replace(joint.transmission, k1=7e3))
+
+    class Moved:
+        def model_params(self):
+            return moved, k1
+    out = arm_for(model, 2, Moved(), view)
+    js, before = out.joints[1], model.joints[1]
+    assert out.joints[0] == model.joints[0]
+    assert js.tip_mass == pytest.approx(before.tip_mass + 0.2)
+    assert js.motor_inertia == pytest.approx(before.motor_inertia + single.motor_inertia)
+    assert js.joint.transmission.k1 == 7e3 and js.hub_inertia == before.hub_inertia
+    assert out.world.gravity == pytest.approx(0.5 * model.world.gravity)
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -58,11 +58,14 @@ def loaded_predictor(measured: Measured, structure, arm: mujoco.MjModel, rec, j:
     return LoadedPredictor(measured, load, design, fit_signals=fit_signals, describe=describe)
 
 
-def load_note(predictor: LoadedPredictor) -> str:
-    """One line on the load's size: rms on the link against the rms of the measured torque."""
-    link = predictor.load.get("link")
+def load_note(predictor) -> str:
+    """One line on how joint j meets the rest of the arm, and the size of the load where computed."""
+    where = predictor.describe or "the arm"
+    link = getattr(predictor, "load", {}).get("link")
+    if link is None:
+        return f"simulated inside {where}, the other joints following their measured motion"
     tau = predictor.m.tau
-    size = "" if link is None else f"rms {np.sqrt(np.mean(link ** 2)):.3g} N m on the link"
-    if link is not None and tau is not None and np.any(tau):
+    size = f"rms {np.sqrt(np.mean(link ** 2)):.3g} N m on the link"
+    if tau is not None and np.any(tau):
         size += f" ({np.sqrt(np.mean(link ** 2)) / np.sqrt(np.mean((tau - tau.mean()) ** 2)):.2g} x tau's spread)"
-    return f"the other joints' measured motion loads it through {predictor.describe or 'the arm'}: {size}"
+    return f"the other joints' measured motion loads it through {where}: {size}"

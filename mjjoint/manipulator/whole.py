@@ -1,0 +1,194 @@
+"""Joint j simulated inside the whole arm, the other joints made to follow their measured motion.
+
+The arm of a ``[[joint]]`` model file is rebuilt for every structure the fit tries, joint j's
+physics and bodies taken from it (``arm_for``), and every other joint's motor and link dof is
+made HEAVY (an armature of HEAVY kg m^2) and pushed by HEAVY times its measured acceleration
+(``qfrc_applied``, every step). A dof that heavy accelerates as pushed whatever the arm does
+to it (the rest of its dynamics is a part in HEAVY / its inertia), and MuJoCo's multibody
+dynamics carries that motion to joint j exactly: M_JK q''_K with the measured q''_K, the
+Coriolis and gravity terms at the simulated configuration, and the rods no encoder sees
+(flexible segments of any link) simulated, not assumed at rest. Each window starts the other
+joints at their measured angles and velocities (they then integrate the measured
+accelerations over the window), the rods as one run along the whole recording leaves them
+(``ArmPredictor._hidden``).
+
+This is the route for arms with flexible links, where the load computed once along the
+measured motion (``manipulator.load``) cannot know the rods' bending (docs/multijoint.md).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import mujoco
+import numpy as np
+
+from ..assets import load_model
+from ..assets.serial import build_serial_arm
+from ..assets.serial_file import SerialArmFile
+from ..coupling.plugin import register_model
+from ..identify.structure import Structure
+from ..identify.windows import Measured, Predictor, WindowDesign
+from ..sim import FULL, joint_indices
+
+# Armature of the prescribed dofs [kg m^2]: 1e6 puts the other joints' response to joint j and
+# to their own forces below 1e-8 of their motion on the shipped arms (inertias 1e-5 to 1e-1).
+HEAVY = 1e6
+_CACHE: dict = {}
+
+
+def arm_for(arm: SerialArmFile, j: int, structure: Structure, view: Structure) -> SerialArmFile:
+    """``arm`` with joint j's physics from ``structure`` and its bodies moved as far as the
+    structure's single-joint bodies are from ``view``'s (joint j's single-joint view, where the fit
+    started): the view's lumped values (tip weight, hub inertia) are the chain's plus joint j's own,
+    so a change is joint j's; gravity scales the whole arm's."""
+    single, joint = structure.model_params()
+    start, _ = view.model_params()
+    js = arm.joints[j - 1]
+    shared = {f.name for f in dataclasses.fields(js)} & {f.name for f in dataclasses.fields(single)}
+    # Rounding in the structure's round trip is no change (a weight of 1e-15 kg is a geom of size 0).
+    moved = {n: max(0.0, getattr(js, n) + (getattr(single, n) - getattr(start, n))) for n in shared
+             if n != "segments" and not math.isclose(getattr(single, n), getattr(start, n), rel_tol=1e-9)}
+    joints = list(arm.joints)
+    joints[j - 1] = dataclasses.replace(js, joint=joint, **moved)
+    ratio = single.gravity / start.gravity if start.gravity else 1.0
+    g = arm.world.gravity * (1.0 if math.isclose(ratio, 1.0, rel_tol=1e-9) else ratio)
+    return dataclasses.replace(arm, joints=tuple(joints), world=dataclasses.replace(arm.world, gravity=g))
+
+
+def _heavy_arm(arm: SerialArmFile, j: int) -> mujoco.MjModel:
+    """The compiled arm, every joint's motor and link dof but joint j's HEAVY (memoised)."""
+    key = (arm, j)
+    model = _CACHE.get(key)
+    if model is None:
+        if len(_CACHE) > 256:
+            _CACHE.clear()
+        spec = build_serial_arm(list(arm.joints), arm.world)
+        for k in range(1, len(arm.joints) + 1):
+            if k != j:
+                for name in (f"motor{k}", f"link{k}"):
+                    spec.joint(name).armature = spec.joint(name).armature + HEAVY
+        model = load_model(spec)
+        register_model(model)
+        _CACHE[key] = model
+    return model
+
+
+class ArmPredictor(Predictor):
+    """``Predictor`` of joint j of ``arm`` with the other joints following ``motion``
+    (``manipulator.load.measured_motion``: per joint q, q', q'', theta, theta', theta'')."""
+
+    control_spec = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)
+
+    def __init__(self, measured: Measured, arm: SerialArmFile, j: int, view: Structure, motion: list,
+                 design: WindowDesign = WindowDesign(), nthread: int | None = None,
+                 fit_signals: tuple[str, ...] | None = None, describe: str = ""):
+        super().__init__(measured, design, nthread, fit_signals)
+        self.arm, self.j, self.view, self.motion = arm, j, view, motion
+        self.describe = describe
+
+    def on(self, measured: Measured) -> "ArmPredictor":
+        """The same arm and other joints' motion for other measurements of joint j (a twin)."""
+        return ArmPredictor(measured, self.arm, self.j, self.view, self.motion, self.design, self.nthread,
+                            describe=self.describe)
+
+    def _model(self, structure: Structure):
+        return _heavy_arm(arm_for(self.arm, self.j, structure, self.view), self.j)
+
+    def _joint(self, model):
+        return joint_indices(model)[self.j - 1]
+
+    def _others(self, model):
+        """(qpos address, dof, (position, velocity, acceleration)) of every prescribed dof; the
+        same in every arm this predictor builds (only joint j's values change)."""
+        if getattr(self, "_prescribed", None) is None:
+            out = []
+            for k, ji in enumerate(joint_indices(model)):
+                if k != self.j - 1:
+                    q, qd, qdd, th, thd, thdd = self.motion[k]
+                    out += [(ji.motor_qpos, ji.motor_dof, (q, qd, qdd)), (ji.link_qpos, ji.link_dof, (th, thd, thdd))]
+            self._prescribed = out
+        return self._prescribed
+
+    def _measured_others(self, model, i0: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """``x`` (state rows at samples ``i0``) with the other joints put on their measured motion."""
+        for qadr, dof, (p, v, _) in self._others(model):
+            x[:, 1 + qadr], x[:, 1 + model.nq + dof] = p[i0], v[i0]
+        return x
+
+    def _flexible_rows(self, model, ji, i0: np.ndarray) -> np.ndarray:
+        return np.zeros(0, int)  # the rods' states come from the history run (``_hidden``)
+
+    def _initial_states(self, model, i0: np.ndarray, ji, skew: float = 0.0) -> np.ndarray:
+        x0 = self._measured_others(model, i0, super()._initial_states(model, i0, ji, skew))
+        qadr, vadr, hq, hv = self._hidden(model, ji)
+        x0[:, 1 + qadr], x0[:, 1 + model.nq + vadr] = hq[i0], hv[i0]
+        return x0
+
+    def _hidden(self, model, ji) -> tuple[np.ndarray, ...]:
+        """(qpos addresses, dofs, positions (n, k), velocities (n, k)) of the coordinates no
+        encoder sees (the rods' segments), at every sample: one run along the recording with
+        every encoder's joint put back on its measurement each sample.
+
+        The rods' bending is the memory of the whole motion: lightly damped, it outlasts any
+        short lead-in (on the shipped arm3, starts bent by a 0.1 s lead-in left the yaw joint's
+        windows at deflection NRMSE 0.2-0.5 where this run's states give 0.01-0.05). Run once,
+        on the starting structure's arm: with joint j's encoders on the record each sample, its
+        fitted physics hardly enter the rods' motion."""
+        if getattr(self, "_hidden_run", None) is None:
+            start = self._model(self.view)
+            sji = self._joint(start)
+            seen = {sji.motor_qpos, sji.link_qpos} | {a for a, _, _ in self._others(start)}
+            seen_v = {sji.motor_dof, sji.link_dof} | {v for _, v, _ in self._others(start)}
+            qadr = np.array([a for a in range(start.nq) if a not in seen], int)
+            vadr = np.array([a for a in range(start.nv) if a not in seen_v], int)
+            m, n = self.m, len(self.m.t)
+            hq, hv = np.zeros((n, len(qadr))), np.zeros((n, len(vadr)))
+            x = Predictor._initial_states(self, start, np.array([0]), sji)
+            x[:, 1 + qadr] = start.qpos0[qadr]
+            put = [(1 + sji.motor_qpos, m.q), (1 + start.nq + sji.motor_dof, m.qd),
+                   (1 + sji.link_qpos, m.theta), (1 + start.nq + sji.link_dof, m.thetad)]
+            ctrl = self._controls(start, np.array([0]), n, 0.0, sji)[0]
+            sub, nu = self._substeps(start), start.nu
+            d = mujoco.MjData(start)
+            for k in range(n):
+                for col, meas in put:
+                    x[:, col] = meas[k]
+                self._measured_others(start, np.array([k]), x)
+                hq[k], hv[k] = x[0, 1 + qadr], x[0, 1 + start.nq + vadr]
+                if k + 1 < n and len(qadr):  # one row, sample by sample: plain steps beat rollout calls
+                    mujoco.mj_setState(start, d, x[0], FULL)
+                    for c in ctrl[k * sub:(k + 1) * sub]:
+                        d.ctrl[:], d.qfrc_applied[:] = c[:nu], c[nu:]
+                        mujoco.mj_step(start, d)
+                    mujoco.mj_getState(start, d, x[0], FULL)
+            self.rollouts += 1.0
+            self._hidden_run = (qadr, vadr, hq, hv)
+        return self._hidden_run
+
+    def _controls(self, model, i0: np.ndarray, n: int, delay: float, ji) -> np.ndarray:
+        ctrl = super()._controls(model, i0, n, delay, ji)
+        sub = self._substeps(model)
+        at = i0[:, None] + np.arange(ctrl.shape[1])[None, :] / sub  # each step's start [samples]
+        force = np.zeros(ctrl.shape[:2] + (model.nv,))
+        samples = np.arange(len(self.m.t))
+        for _, dof, (_, _, acc) in self._others(model):
+            force[:, :, dof] = HEAVY * np.interp(at, samples, acc)
+        return np.concatenate([ctrl, force], axis=2)
+
+
+def arm_predictor(measured: Measured, structure: Structure, arm_file: SerialArmFile | None, arm: mujoco.MjModel,
+                  rec, j: int, design: WindowDesign, fit_signals: tuple[str, ...] | None = None,
+                  describe: str = "") -> Predictor:
+    """Joint j's predictor in a moving arm: inside the whole arm when its ``[[joint]]`` file is
+    given (``ArmPredictor``: rebuilt per structure); for an MJCF, which cannot be rebuilt from a
+    single joint's parameters, the view with the load of the others' measured motion
+    (``predictor.loaded_predictor``)."""
+    from .load import measured_motion
+    from .predictor import loaded_predictor
+    if arm_file is None:
+        return loaded_predictor(measured, structure, arm, rec, j, design, fit_signals, describe)
+    grid, motion = measured_motion(rec)
+    if len(grid) != len(measured.t):
+        raise ValueError(f"joint {j}: the other joints' motion and the recording are on different time grids")
+    return ArmPredictor(measured, arm_file, j, structure, motion, design, fit_signals=fit_signals, describe=describe)
