@@ -167,8 +167,8 @@ def test_a_twin_of_a_joint_in_the_arm_keeps_the_arm_or_the_load(arm, tmp_path):
 
 def test_a_structure_moves_joint_j_of_the_arm_by_its_change_from_the_view(arm):
     """What the fit changes in the single-joint structure lands on joint j of the arm: its
-    physics, a body value by the same difference, gravity by the same ratio; the other joint
-    stays as it was."""
+    physics, a body value by the same difference (the rod-end weight as a point mass to add),
+    gravity by the same ratio; the other joint stays as it was."""
     model = arm["model"]
     view = _problem(arm["rec"], model, 2).base
     single, joint = view.model_params()
@@ -179,10 +179,10 @@ def test_a_structure_moves_joint_j_of_the_arm_by_its_change_from_the_view(arm):
     class Moved:
         def model_params(self):
             return moved, k1
-    out = arm_for(model, 2, Moved(), view)
+    out, weight = arm_for(model, 2, Moved(), view)
     js, before = out.joints[1], model.joints[1]
     assert out.joints[0] == model.joints[0]
-    assert js.tip_mass == pytest.approx(before.tip_mass + 0.2)
+    assert js.tip_mass == before.tip_mass and weight == pytest.approx(0.2)
     assert js.motor_inertia == pytest.approx(before.motor_inertia + single.motor_inertia)
     assert js.joint.transmission.k1 == 7e3 and js.hub_inertia == before.hub_inertia
     assert out.world.gravity == pytest.approx(0.5 * model.world.gravity)

@@ -37,28 +37,32 @@ HEAVY = 1e6
 _CACHE: dict = {}
 
 
-def arm_for(arm: SerialArmFile, j: int, structure: Structure, view: Structure) -> SerialArmFile:
-    """``arm`` with joint j's physics from ``structure`` and its bodies moved as far as the
-    structure's single-joint bodies are from ``view``'s (joint j's single-joint view, where the fit
-    started): the view's lumped values (tip weight, hub inertia) are the chain's plus joint j's own,
-    so a change is joint j's; gravity scales the whole arm's."""
+def arm_for(arm: SerialArmFile, j: int, structure: Structure, view: Structure) -> tuple[SerialArmFile, float]:
+    """(``arm`` with joint j's physics from ``structure`` and its bodies moved as far as the
+    structure's single-joint bodies are from ``view``'s, the weight to add at joint j's rod end
+    [kg]). ``view`` is joint j's single-joint view where the fit started: its lumped values (tip
+    weight, hub inertia) are the chain's plus joint j's own, so a change is joint j's; gravity
+    scales the whole arm's. The weight goes on as a point mass (``_heavy_arm``): the arm draws a
+    rod-end weight as a steel sphere, which a fit's small steps would shrink to nothing."""
     single, joint = structure.model_params()
     start, _ = view.model_params()
     js = arm.joints[j - 1]
     shared = {f.name for f in dataclasses.fields(js)} & {f.name for f in dataclasses.fields(single)}
-    # Rounding in the structure's round trip is no change (a weight of 1e-15 kg is a geom of size 0).
-    moved = {n: max(0.0, getattr(js, n) + (getattr(single, n) - getattr(start, n))) for n in shared
-             if n != "segments" and not math.isclose(getattr(single, n), getattr(start, n), rel_tol=1e-9)}
+    # Rounding in the structure's round trip is no change.
+    changed = {n for n in shared - {"segments"} if not math.isclose(getattr(single, n), getattr(start, n), rel_tol=1e-9)}
+    moved = {n: max(0.0, getattr(js, n) + (getattr(single, n) - getattr(start, n))) for n in changed - {"tip_mass"}}
+    weight = max(single.tip_mass - start.tip_mass, -js.tip_mass) if "tip_mass" in changed else 0.0
     joints = list(arm.joints)
     joints[j - 1] = dataclasses.replace(js, joint=joint, **moved)
     ratio = single.gravity / start.gravity if start.gravity else 1.0
     g = arm.world.gravity * (1.0 if math.isclose(ratio, 1.0, rel_tol=1e-9) else ratio)
-    return dataclasses.replace(arm, joints=tuple(joints), world=dataclasses.replace(arm.world, gravity=g))
+    return dataclasses.replace(arm, joints=tuple(joints), world=dataclasses.replace(arm.world, gravity=g)), weight
 
 
-def _heavy_arm(arm: SerialArmFile, j: int) -> mujoco.MjModel:
-    """The compiled arm, every joint's motor and link dof but joint j's HEAVY (memoised)."""
-    key = (arm, j)
+def _heavy_arm(arm: SerialArmFile, j: int, weight: float = 0.0) -> mujoco.MjModel:
+    """The compiled arm, every joint's motor and link dof but joint j's HEAVY, ``weight`` [kg]
+    added at joint j's rod end (memoised)."""
+    key = (arm, j, weight)
     model = _CACHE.get(key)
     if model is None:
         if len(_CACHE) > 256:
@@ -69,6 +73,12 @@ def _heavy_arm(arm: SerialArmFile, j: int) -> mujoco.MjModel:
                 for name in (f"motor{k}", f"link{k}"):
                     spec.joint(name).armature = spec.joint(name).armature + HEAVY
         model = load_model(spec)
+        if weight:
+            tip = model.body(f"tip{j}").id
+            if model.body_mass[tip] == 0.0:  # no weight drawn: the inertial frame of an empty body is arbitrary
+                model.body_ipos[tip], model.body_iquat[tip] = 0.0, (1.0, 0.0, 0.0, 0.0)
+            model.body_mass[tip] += weight
+            mujoco.mj_setConst(model, mujoco.MjData(model))  # masses, inertias and weights derived from it
         register_model(model)
         _CACHE[key] = model
     return model
@@ -93,7 +103,8 @@ class ArmPredictor(Predictor):
                             describe=self.describe)
 
     def _model(self, structure: Structure):
-        return _heavy_arm(arm_for(self.arm, self.j, structure, self.view), self.j)
+        arm, weight = arm_for(self.arm, self.j, structure, self.view)
+        return _heavy_arm(arm, self.j, weight)
 
     def _joint(self, model):
         return joint_indices(model)[self.j - 1]
