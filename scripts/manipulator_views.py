@@ -1,7 +1,8 @@
-"""Held-out NRMSE of each joint's single-joint view at the true values, no fit: alone, with the
-other joints' measured motion as a load through the arm (``--arm``, ``mjjoint.manipulator``),
-and alone on a recording where the other joints are locked (where the view is exact for rigid
-links: the windows' own error). Arms: the test arm of tests/test_multijoint_diagnose.py (yaw +
+"""Held-out NRMSE of each joint at the true values, no fit: its single-joint view alone; inside
+the whole arm with the other joints following their measured motion (``--arm`` with a
+[[joint]] file); its view with the load of that motion (``--arm`` with an MJCF); and its view
+alone on a recording where the other joints are locked (exact for rigid links: the windows'
+own error). Arms: the test arm of tests/test_multijoint_diagnose.py (yaw +
 pitch, and turned planar), the shipped arm3's bodies with rigid rods, and arm3 as shipped
 (flexible rods). Every joint tracks the tests' three sines (0.7-5.3 Hz, 0.2 rad p-p) for 3 s
 under a motor-side PD; 0.1 s windows.
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -56,23 +58,27 @@ def main() -> None:
         "arm3 bodies, rigid rods": SerialArmFile(tuple(dataclasses.replace(js, segments=0) for js in arm3())),
         "arm3 as shipped (flexible rods)": SerialArmFile(tuple(arm3())),
     }
-    print("| arm | joint | alone: q / delta / tau | with --arm | alone, others locked | load [s] |")
-    print("|---|---|---|---|---|---|")
+    print("| arm | joint | alone: q / delta / tau | inside the arm ([[joint]] file) | load (MJCF) "
+          "| alone, others locked | s: alone / inside / load |")
+    print("|---|---|---|---|---|---|---|")
     for name, arm in arms.items():
         n = len(arm.joints)
         rec = _run(arm.compile(), n)
+        xml = Path(tempfile.mkdtemp()) / "arm.xml"
+        xml.write_text(build_serial_arm(list(arm.joints), arm.world).to_xml())
         for j in range(1, n + 1):
             spec = build_serial_arm(list(arm.joints), arm.world)
             for k in set(range(1, n + 1)) - {j}:
                 lock(spec, f"motor{k}", f"link{k}")
             still = _run(load_model(spec), n, moving=[j - 1]).joint(j)
-            alone = load_problem(rec, Inputs(model=arm, joints=(j,), design=DESIGN)).problems[j]
-            start = time.perf_counter()
-            loaded = load_problem(rec, Inputs(model=arm, joints=(j,), design=DESIGN, arm=arm)).problems[j]
-            seconds = time.perf_counter() - start
-            floor = Predictor(Measured.from_recording(still, alone.base.gear_ratio), DESIGN)
-            print(f"| {name} | {j} | {_nrmse(alone.predictor, alone.base)} | {_nrmse(loaded.predictor, loaded.base)} "
-                  f"| {_nrmse(floor, alone.base)} | {seconds:.2f} |")
+            cells, seconds = [], []
+            for given in (None, arm, xml):  # problem + one prediction of every window, timed
+                start = time.perf_counter()
+                p = load_problem(rec, Inputs(model=arm, joints=(j,), design=DESIGN, arm=given)).problems[j]
+                cells.append(_nrmse(p.predictor, p.base))
+                seconds.append(f"{time.perf_counter() - start:.2f}")
+            floor = Predictor(Measured.from_recording(still, p.base.gear_ratio), DESIGN)
+            print(f"| {name} | {j} | {' | '.join(cells)} | {_nrmse(floor, p.base)} | {' / '.join(seconds)} |")
 
 
 if __name__ == "__main__":
