@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from ..assets import load_model
+from ..assets.joint_view import _subtree
 from ..assets.serial import build_serial_arm
 from ..assets.serial_file import SerialArmFile
 from ..coupling.plugin import register_model
@@ -49,8 +50,9 @@ def arm_for(arm: SerialArmFile, j: int, structure: Structure, view: Structure) -
     structure's single-joint bodies are from ``view``'s, the weight to add at joint j's rod end
     [kg]). ``view`` is joint j's single-joint view where the fit started: its lumped values (tip
     weight, hub inertia) are the chain's plus joint j's own, so a change is joint j's; gravity
-    scales the whole arm's. The weight goes on as a point mass (``_heavy_arm``): the arm draws a
-    rod-end weight as a steel sphere, which a fit's small steps would shrink to nothing."""
+    scales the whole arm's. The weight is added to the load at the rod end (``_add_weight``), not
+    to the drawn weight: the arm draws it as a steel sphere, which a fit's small steps would
+    shrink to nothing, and a joint without one could not lose weight."""
     single, joint = structure.model_params()
     start, _ = view.model_params()
     js = arm.joints[j - 1]
@@ -58,7 +60,7 @@ def arm_for(arm: SerialArmFile, j: int, structure: Structure, view: Structure) -
     # Rounding in the structure's round trip is no change.
     changed = {n for n in shared - {"segments"} if not math.isclose(getattr(single, n), getattr(start, n), rel_tol=1e-9)}
     moved = {n: max(0.0, getattr(js, n) + (getattr(single, n) - getattr(start, n))) for n in changed - {"tip_mass"}}
-    weight = max(single.tip_mass - start.tip_mass, -js.tip_mass) if "tip_mass" in changed else 0.0
+    weight = single.tip_mass - start.tip_mass if "tip_mass" in changed else 0.0
     joints = list(arm.joints)
     joints[j - 1] = dataclasses.replace(js, joint=joint, **moved)
     ratio = single.gravity / start.gravity if start.gravity else 1.0
@@ -88,14 +90,26 @@ def _heavy_arm(arm: SerialArmFile, j: int, weight: float = 0.0) -> mujoco.MjMode
                     act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         model = load_model(spec)
         if weight:
-            tip = model.body(f"tip{j}").id
-            if model.body_mass[tip] == 0.0:  # no weight drawn: the inertial frame of an empty body is arbitrary
-                model.body_ipos[tip], model.body_iquat[tip] = 0.0, (1.0, 0.0, 0.0, 0.0)
-            model.body_mass[tip] += weight
-            mujoco.mj_setConst(model, mujoco.MjData(model))  # masses, inertias and weights derived from it
+            _add_weight(model, model.body(f"tip{j}").id, weight)
         register_model(model)
         _CACHE[key] = model
     return model
+
+
+def _add_weight(model: mujoco.MjModel, tip: int, weight: float) -> None:
+    """``weight`` [kg] more at the rod end ``tip``, in place. The view's rod-end weight stands for
+    everything the rod end carries, so the whole load there is scaled (masses and inertias, COMs
+    kept), which a fit may also lower; a bare rod end gets a point mass."""
+    bodies = _subtree(model, tip)
+    total = float(model.body_mass[bodies].sum())
+    if total > 0:
+        scale = max(total + weight, 0.0) / total
+        model.body_mass[bodies] *= scale
+        model.body_inertia[bodies] *= scale
+    else:  # nothing there: the inertial frame of an empty body is arbitrary
+        model.body_ipos[tip], model.body_iquat[tip] = 0.0, (1.0, 0.0, 0.0, 0.0)
+        model.body_mass[tip] = max(weight, 0.0)
+    mujoco.mj_setConst(model, mujoco.MjData(model))  # what MuJoCo derives from masses and inertias
 
 
 class ArmPredictor(Predictor):
