@@ -3,13 +3,14 @@
 The arm of a ``[[joint]]`` model file is rebuilt for every structure the fit tries, joint j's
 physics and bodies taken from it (``arm_for``), and every other joint's motor and link dof is
 made HEAVY (an armature of HEAVY kg m^2) and pushed by HEAVY times its measured acceleration
-every step, plus a slow correction onto its measured angle (FOLLOW_HZ; an actuator per dof). A dof that heavy accelerates as pushed whatever the arm does
-to it (the rest of its dynamics is a part in HEAVY / its inertia), and MuJoCo's multibody
+every step, plus a slow correction onto its measured angle (FOLLOW_HZ; an actuator per dof).
+A dof that heavy accelerates as pushed whatever the arm does to it (the rest of its dynamics
+is a part in HEAVY / its inertia), and MuJoCo's multibody
 dynamics carries that motion to joint j exactly: M_JK q''_K with the measured q''_K, the
 Coriolis and gravity terms at the simulated configuration, and the rods no encoder sees
 (flexible segments of any link) simulated, not assumed at rest. Each window starts the other
-joints at their measured angles and velocities (they then integrate the measured
-accelerations over the window), the rods as one run along the whole recording leaves them
+joints at their measured angles and velocities (from there they follow the pushes), the rods
+as one run along the whole recording leaves them
 (``ArmPredictor._hidden``).
 
 This is the route for arms with flexible links, where the load computed once along the
@@ -122,6 +123,8 @@ class ArmPredictor(Predictor):
         super().__init__(measured, design, nthread, fit_signals)
         self.arm, self.j, self.view, self.motion = arm, j, view, motion
         self.describe = describe
+        self._prescribed: list | None = None  # ``_others``
+        self._hidden_run: tuple | None = None  # ``_hidden``
 
     def on(self, measured: Measured) -> "ArmPredictor":
         """The same arm and other joints' motion for other measurements of joint j (a twin)."""
@@ -138,7 +141,7 @@ class ArmPredictor(Predictor):
     def _others(self, model):
         """(qpos address, dof, (position, velocity, acceleration), follower actuator) of every
         prescribed dof; the same in every arm this predictor builds (only joint j's values change)."""
-        if getattr(self, "_prescribed", None) is None:
+        if self._prescribed is None:
             out = []
             for k, ji in enumerate(joint_indices(model)):
                 if k != self.j - 1:
@@ -160,11 +163,11 @@ class ArmPredictor(Predictor):
 
     def _initial_states(self, model, i0: np.ndarray, ji, skew: float = 0.0) -> np.ndarray:
         x0 = self._measured_others(model, i0, super()._initial_states(model, i0, ji, skew))
-        qadr, vadr, hq, hv = self._hidden(model, ji)
+        qadr, vadr, hq, hv = self._hidden()
         x0[:, 1 + qadr], x0[:, 1 + model.nq + vadr] = hq[i0], hv[i0]
         return x0
 
-    def _hidden(self, model, ji) -> tuple[np.ndarray, ...]:
+    def _hidden(self) -> tuple[np.ndarray, ...]:
         """(qpos addresses, dofs, positions (n, k), velocities (n, k)) of the coordinates no
         encoder sees (the rods' segments), at every sample: one run along the recording with
         every encoder's joint put back on its measurement each sample.
@@ -174,7 +177,7 @@ class ArmPredictor(Predictor):
         windows at deflection NRMSE 0.2-0.5 where this run's states give 0.01-0.05). Run once,
         on the starting structure's arm: with joint j's encoders on the record each sample, its
         fitted physics hardly enter the rods' motion."""
-        if getattr(self, "_hidden_run", None) is None:
+        if self._hidden_run is None:
             start = self._model(self.view)
             sji = self._joint(start)
             seen = {sji.motor_qpos, sji.link_qpos} | {o[0] for o in self._others(start)}
