@@ -21,7 +21,8 @@ from ..problem import JointProblems
 from .options import run_info
 
 COUPLING = ("each joint was diagnosed alone, so the other joints' motion (their inertia, Coriolis and gravity "
-            "forces) is a load its model lacks: it can hide a missing effect or pass for one (docs/multijoint.md)")
+            "forces) is a load its model lacks: it can hide a missing effect or pass for one; --arm FILE takes "
+            "it into account (docs/multijoint.md)")
 LOADED = ("the other joints' inertia, Coriolis and gravity forces on each joint were computed by MuJoCo from their "
           "measured motion through {arm} (docs/multijoint.md)")
 
