@@ -229,3 +229,12 @@ def test_diagnosis_on_parallel_axes_names_the_play_of_joint_2_and_nothing_in_joi
     assert joint2["final_model"]["parameters"]["backlash.width"] == pytest.approx(BACKLASH, rel=0.05)
     assert joint2["final_fit"]["nrmse_heldout"]["tau"] < joint2["initial_fit"]["nrmse_heldout"]["tau"] / 3
     assert "measured motion through" in top["verdict"]
+
+
+def test_an_unstable_structure_inside_the_arm_scores_nan_instead_of_failing(arm):
+    """A fit may try a gear too stiff for the timestep: inside the arm it is scored as the single
+    joint's are (NaN, the worst), not rejected with an error."""
+    p = _problem(arm["rec"], arm["model"], 2, arm=arm["model"])
+    stiff = p.base.with_values({**p.base.values, "linear_stiffness.k1": 1e4 * p.base.values["linear_stiffness.k1"]})
+    good, bad = p.predictor.predict([p.base, stiff], np.arange(3))
+    assert np.all(np.isfinite(good["tau"])) and np.all(np.isnan(bad["tau"]))

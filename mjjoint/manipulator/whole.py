@@ -24,9 +24,8 @@ import math
 import mujoco
 import numpy as np
 
-from ..assets import load_model
 from ..assets.joint_view import _subtree
-from ..assets.serial import build_serial_arm
+from ..assets.serial import add_elastic_joint, add_home_key, new_spec
 from ..assets.serial_file import SerialArmFile
 from ..coupling.plugin import register_model
 from ..identify.structure import Structure
@@ -77,7 +76,13 @@ def _heavy_arm(arm: SerialArmFile, j: int, weight: float = 0.0) -> mujoco.MjMode
     if model is None:
         if len(_CACHE) > 256:
             _CACHE.clear()
-        spec = build_serial_arm(list(arm.joints), arm.world)
+        # As build_serial_arm, without its stability check: a fit's unstable candidates are
+        # scored (NaN), not rejected (``Predictor.predict``), as the single joint's are.
+        spec = new_spec(arm.world)
+        parent = spec.worldbody
+        for k, js in enumerate(arm.joints, start=1):
+            parent = add_elastic_joint(spec, parent, k, js)
+        add_home_key(spec)
         w = 2 * math.pi * FOLLOW_HZ
         for k in range(1, len(arm.joints) + 1):
             if k != j:
@@ -89,7 +94,7 @@ def _heavy_arm(arm: SerialArmFile, j: int, weight: float = 0.0) -> mujoco.MjMode
                     act.gainprm[0] = HEAVY
                     act.biasprm[:3] = [0.0, -HEAVY * w * w, -2 * HEAVY * w]
                     act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-        model = load_model(spec)
+        model = spec.compile()
         if weight:
             _add_weight(model, model.body(f"tip{j}").id, weight)
         register_model(model)
