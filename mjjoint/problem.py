@@ -4,7 +4,8 @@
 from effect names or a model file (its terms mapped onto effects, its values as initial values),
 and gives a ``Problem``; a multi-joint recording gives ``JointProblems``, one single-joint
 problem per selected joint, each from that joint's starting model (``[[joint]]`` model files:
-``assets.joint_view``). The command line and the Python API (``mjjoint.fit``,
+``assets.joint_view``), loaded, given ``Inputs.arm``, by the other joints' measured motion
+(``manipulator``). The command line and the Python API (``mjjoint.fit``,
 ``mjjoint.diagnose``) both build their problems here; ``names`` lets each name its own inputs
 in the one-line ``ValueError`` messages (``gear_ratio`` or ``--gear-ratio``).
 """
@@ -24,6 +25,7 @@ from .identify.from_model import structure_from_model
 from .identify.initial import estimate
 from .identify.structure import Structure
 from .identify.windows import Measured, Predictor, WindowDesign
+from .manipulator import arm_model, arm_predictor, load_note
 from .modelfile import ModelFile
 from .recordings import MultiRecording, Recording, read_recording
 from .recordings.resample import describe as describe_resampling
@@ -48,6 +50,7 @@ class JointProblems:
     source: str
     problems: dict[int, Problem]
     notes: list[str] = field(default_factory=list)
+    arm: str | None = None  # the arm whose other joints' measured motion loads each joint (``Inputs.arm``)
 
 
 @dataclass(frozen=True)
@@ -73,6 +76,9 @@ class Inputs:
     scales: Mapping[str, float] | None = None
     allow_gaps: bool = False
     fit_signals: tuple[str, ...] | None = None  # the signals the cost scores (q, delta, tau); None: all recorded
+    # The arm (a [[joint]] model file or an MJCF of it): each joint's other joints' measured motion
+    # loads it through MuJoCo's multibody dynamics (``manipulator``); None: each joint alone.
+    arm: SerialArmFile | str | Path | None = None
 
 
 def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[Recording | str | Path],
@@ -108,6 +114,8 @@ def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[R
     if inputs.plant != "arm":
         return _drive_problem(recording, inputs, say)
     model = read_model_file(inputs.model) if isinstance(inputs.model, (str, Path)) else inputs.model
+    if model is None and inputs.base is None and inputs.arm is not None:
+        model = _arm_file(inputs.arm)  # a [[joint]] arm file is also where each joint starts
     if _several_joints(inputs, model):
         return _joint_problems(recording, inputs, model, say)
     notes: list[str] = []
@@ -215,9 +223,10 @@ def _from_model(model: ModelFile, gear_ratio: float | None, say) -> tuple[Struct
 
 def _drive_problem(recording, inputs: Inputs, say) -> Problem:
     """A direct drive (plant linear or rotary): its inertia, then the effects listed."""
-    if inputs.model is not None:
-        raise ValueError(f"{say('plant')} {inputs.plant}: a direct drive starts from {say('base')}, "
-                         f"not a {say('model')} file")
+    if inputs.model is not None or inputs.arm is not None:
+        given = say("model") if inputs.model is not None else say("arm")
+        raise ValueError(f"{say('plant')} {inputs.plant}: a direct drive starts from {say('base')}; "
+                         f"{given} does not apply")
     effects = () if inputs.base is None else _effects(inputs.base, say, plant_effects(DriveSpec()))
     recs = [_read(r, inputs, 1.0, inputs.k_m) for r in _each(recording)]
     if not all(isinstance(rec, Recording) for rec in recs):
@@ -232,7 +241,7 @@ def _drive_problem(recording, inputs: Inputs, say) -> Problem:
 
 def _several_joints(inputs: Inputs, model) -> bool:
     """Whether the inputs alone say the recording has several joints."""
-    return (inputs.joints is not None or isinstance(model, SerialArmFile)
+    return (inputs.joints is not None or isinstance(model, SerialArmFile) or inputs.arm is not None
             or isinstance(inputs.gear_ratio, tuple) or isinstance(inputs.k_m, tuple))
 
 
@@ -266,6 +275,7 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
     joints = inputs.joints or tuple(range(1, n + 1))
     if max(joints) > n:
         raise ValueError(f"{say('joints')} {max(joints)}: {source} holds {n} joints (1-{n})")
+    arm = None if inputs.arm is None else arm_model(inputs.arm, n, say("arm"))
     bases, notes = _starting_models(inputs, model, n, say)
     problems = {}
     for j in joints:
@@ -273,10 +283,32 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
         try:
             measured = Measured.from_recording(rec.joint(j), base.gear_ratio)
             predictor = make_predictor(measured, inputs, say)
+            started = _started(base, measured, model is not None)
+            if arm is not None:
+                predictor = arm_predictor(measured, started, _arm_file(inputs.arm), arm, rec, j, inputs.design,
+                                          inputs.fit_signals, _arm_name(inputs.arm))
+                notes.append((j, load_note(predictor)))
         except ValueError as exc:
             raise ValueError(f"joint {j}: {exc}") from None
-        problems[j] = Problem(f"{source} joint {j}", predictor, _started(base, measured, model is not None), [])
-    return JointProblems(source, problems, [f"joint {j}: {m}" for j, m in notes if j in joints])
+        problems[j] = Problem(f"{source} joint {j}", predictor, started, [])
+    return JointProblems(source, problems, [f"joint {j}: {m}" for j, m in notes if j in joints],
+                         None if arm is None else _arm_name(inputs.arm))
+
+
+def _arm_name(arm) -> str:
+    """The arm as messages name it: its path, or "the arm model" when given as an object."""
+    return str(arm) if isinstance(arm, (str, Path)) else "the arm model"
+
+
+def _arm_file(arm) -> SerialArmFile | None:
+    """The arm's [[joint]] model file, read, or None (an MJCF; errors are ``arm_model``'s)."""
+    if isinstance(arm, SerialArmFile):
+        return arm
+    path = Path(arm)
+    if path.suffix.lower() not in (".toml", ".yaml", ".yml") or not path.is_file():
+        return None
+    found = read_model_file(path)
+    return found if isinstance(found, SerialArmFile) else None
 
 
 def _starting_models(inputs: Inputs, model, n: int, say) -> tuple[list[Structure], list[tuple[int, str]]]:

@@ -26,7 +26,7 @@ def diagnose(recording: Recording | MultiRecording | str | Path, *, options: Dia
             ``DiagnoseOptions()``, as the command line's defaults.
         progress: called with one line of text per step.
         **inputs: the fields of ``mjjoint.problem.Inputs``, as for ``mjjoint.fit``: ``gear_ratio``,
-            ``base`` or ``model``, ``k_m``, ``plant``, ``joints``, ``design``, and for a path
+            ``base`` or ``model``, ``k_m``, ``plant``, ``joints``, ``arm``, ``design``, and for a path
             ``columns``, ``scales``, ``allow_gaps``.
 
     Returns:

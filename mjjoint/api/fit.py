@@ -28,7 +28,8 @@ def fit(recording: Recording | MultiRecording | str | Path, *, max_iter: int = 2
             ``model`` gives it; a tuple gives one per joint), ``base`` (effect names, ``()`` for
             the minimal model; default the seed paper's full joint) or ``model`` (a model file or
             its path), ``k_m`` (u recorded as a current [A]), ``plant`` ("arm", "linear",
-            "rotary"), ``joints`` (joint numbers of a multi-joint recording, from 1), ``design``
+            "rotary"), ``joints`` (joint numbers of a multi-joint recording, from 1), ``arm`` (the
+            whole arm's model: the other joints' measured motion loads each joint), ``design``
             (``WindowDesign``: window length, held-out seed, lead-in), and for a path
             ``columns``, ``scales``, ``allow_gaps`` (as ``read_recording`` takes them).
 

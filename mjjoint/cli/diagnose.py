@@ -28,6 +28,7 @@ examples:
   mjjoint diagnose rec.csv --gear-ratio 160 --candidates backlash,input_delay,torque_ripple
   mjjoint diagnose DATA_EMPS.mat --plant linear --columns t=t,u=vir,q=qm,theta=qm --scales u=35.15
   mjjoint diagnose arm.csv --model arm.toml --joint 1,2   each joint of a multi-joint recording
+  mjjoint diagnose arm.csv --arm arm.toml --joint 2       joint 2 loaded by the other joints' measured motion
   mjjoint diagnose friction_log.csv --friction-map          friction torque vs motion (t,q,tau)
   mjjoint diagnose logs/ --gear-ratio 160 --workers 4 --out fleet   every recording in a folder
   mjjoint diagnose 'logs/*/run*.mat' --columns t=t,u=cur,q=qm,theta=ql --out fleet   a quoted glob

@@ -42,7 +42,8 @@ def read_logs(args: argparse.Namespace) -> FrictionLog:
 def run(args: argparse.Namespace, candidates: tuple[str, ...] | None) -> int:
     from ..report.friction_map import summary, write_friction_map
 
-    for flag, given in (("--model", args.model), ("--base", args.base), ("--k-m", args.k_m), ("--joint", args.joint)):
+    for flag, given in (("--model", args.model), ("--base", args.base), ("--k-m", args.k_m), ("--joint", args.joint),
+                        ("--arm", args.arm)):
         if given is not None:
             raise CliError(f"{flag} does not apply to --friction-map (a friction log: t, q, tau; "
                            "the base is Coulomb and viscous friction)")

@@ -21,7 +21,7 @@ from .errors import CliError
 MINIMAL = "minimal"
 # How the problem's inputs are spelled on the command line, for its messages.
 NAMES = {"gear_ratio": "--gear-ratio", "k_m": "--k-m", "base": "--base", "model": "--model", "plant": "--plant",
-         "joints": "--joint", "fit_signals": "--fit-signals"}
+         "joints": "--joint", "fit_signals": "--fit-signals", "arm": "--arm"}
 FIT_SIGNALS = {"q": "q", "theta": "delta", "tau": "tau"}  # --fit-signals name -> the cost's signal
 
 
@@ -68,6 +68,11 @@ def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
                    help="model file (.toml/.yaml): its terms become effects, its values initial values; "
                         "a [[joint]] file gives each joint of a multi-joint recording its own")
     x.add_argument("--base", metavar="LIST", help="comma list of effect names ('minimal': none)")
+    m.add_argument("--arm", type=Path, metavar="FILE",
+                   help="the whole arm of a multi-joint recording ([[joint]] model file or MJCF with an "
+                        "mjjoint.joint per joint): MuJoCo computes the inertia, Coriolis and gravity forces "
+                        "the other joints' measured motion puts on each joint diagnosed; a [[joint]] file is "
+                        "also the starting model unless --model or --base is given")
     m.add_argument("--plant", choices=PLANTS, default="arm",
                    help="arm: the elastic joint (q and theta measured); linear or rotary: a direct drive, "
                         "one joint and no gear, only q used (map theta to q's column, e.g. theta=qm); "
@@ -118,7 +123,7 @@ def inputs_from_args(args: argparse.Namespace) -> Inputs:
                   design=WindowDesign(length=args.window_length, seed=args.seed, lead=args.lead_in),
                   columns=None if args.columns is None else parse_column_map(args.columns),
                   scales=None if args.scales is None else parse_scales(args.scales), allow_gaps=args.allow_gaps,
-                  fit_signals=fit_signals(args.fit_signals))
+                  fit_signals=fit_signals(args.fit_signals), arm=args.arm)
 
 
 def fit_signals(text: str | None) -> tuple[str, ...] | None:

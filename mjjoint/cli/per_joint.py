@@ -5,7 +5,9 @@ single-joint fit or diagnosis runs on it from that joint's starting model (``pro
 ``--base`` with the joint's ``--gear-ratio``, one value for all joints or one per joint; a
 single-joint model file used for every joint; or a ``[[joint]]`` model file whose joint j is
 seen as the single arm with the rest of the arm frozen as a rigid load, ``assets.joint_view``).
-The other joints' motion is then a load the model lacks: docs/multijoint.md says when that matters.
+The other joints' motion is then a load the model lacks (docs/multijoint.md says when that
+matters), unless ``--arm`` gives the arm: then MuJoCo computes that load from their measured
+motion and each joint's predictor applies it (``manipulator``).
 
 Output: DIR/joint{j}/ holds the usual files of that joint; DIR/diagnosis.json (or fit.json)
 gathers them under "joints", and DIR/index.html links them.
@@ -19,7 +21,10 @@ from ..problem import JointProblems
 from .options import run_info
 
 COUPLING = ("each joint was diagnosed alone, so the other joints' motion (their inertia, Coriolis and gravity "
-            "forces) is a load its model lacks: it can hide a missing effect or pass for one (docs/multijoint.md)")
+            "forces) is a load its model lacks: it can hide a missing effect or pass for one; --arm FILE takes "
+            "it into account (docs/multijoint.md)")
+LOADED = ("the other joints' inertia, Coriolis and gravity forces on each joint were computed by MuJoCo from their "
+          "measured motion through {arm} (docs/multijoint.md)")
 
 
 def fit_joints(args: argparse.Namespace, out, jp: JointProblems) -> int:
@@ -96,14 +101,15 @@ def diagnose_each_joint(args: argparse.Namespace, out, jp: JointProblems, option
     with out.staged() as folder:
         data = _write_each(folder, "diagnose", args, jp, results,
                            lambda path, p, res, run: write_diagnosis(path, p.predictor, res, p.source, run))
-        summary = joints_verdict(data)
+        summary = joints_verdict(data, COUPLING if jp.arm is None else LOADED.format(arm=jp.arm))
         write_json(folder / "diagnosis.json", summary)
         write_joints_index(folder, "diagnose", jp.source, data, summary, _top_run("diagnose", args, jp, results))
     return summary, {j: s for j, (_, s) in results.items()}
 
 
-def joints_verdict(data: dict[str, dict]) -> dict:
-    """The top-level diagnosis.json: every joint's diagnosis, where something is missing, the verdict."""
+def joints_verdict(data: dict[str, dict], coupling: str = COUPLING) -> dict:
+    """The top-level diagnosis.json: every joint's diagnosis, where something is missing, the verdict
+    (``coupling``: what the verdict notes about the other joints' motion)."""
     mismatch = [int(j) for j, d in data.items() if d["missing"]]
     clean = [j for j in data if int(j) not in mismatch]
     named = [", ".join(data[str(j)]["missing"]) for j in mismatch]
@@ -120,7 +126,7 @@ def joints_verdict(data: dict[str, dict]) -> dict:
         if js:
             parts.append(f"joint{'s' if len(js) > 1 else ''} {', '.join(js)}: {what}")
     return {"joints": data, "mismatch_in": mismatch, "explained": all(d.get("explained") for d in data.values()),
-            "verdict": f"{'; '.join(parts)}. Note: {COUPLING}"}
+            "verdict": f"{'; '.join(parts)}. Note: {coupling}"}
 
 
 def _top_run(command: str, args: argparse.Namespace, jp: JointProblems, results: dict) -> dict:

@@ -136,7 +136,7 @@ def _twin_floor(predictor: Predictor, structure: Structure, noise: dict, quantum
     theta = recorded("theta") if m.theta is not None else np.zeros_like(m.t)
     rec = Recording(t=m.t, u=m.u, q=recorded("q"), theta=theta, tau=recorded("tau"))
     twin_m = replace(Measured.from_recording(rec, m.gear_ratio, output=m.theta is not None), joins=m.joins)
-    twin = Predictor(twin_m, predictor.design, predictor.nthread)
+    twin = predictor.on(twin_m)
     windows = twin.test
     for s in spread:
         ratio = twin.spread(s, windows) / spread[s]

@@ -263,6 +263,10 @@ def _sg_window(dt: float) -> int:
 class Predictor:
     """Windowed predictions of one recording for any number of model structures."""
 
+    # What the columns of ``_controls`` set each step (mujoco.mjtState bits); a subclass that
+    # applies more per step (``manipulator.LoadedPredictor``: a known load) extends both.
+    control_spec = int(mujoco.mjtState.mjSTATE_CTRL)
+
     def __init__(self, measured: Measured, design: WindowDesign = WindowDesign(), nthread: int | None = None,
                  fit_signals: tuple[str, ...] | None = None):
         """``fit_signals``: the measured signals the cost scores (default all of SIGNALS the
@@ -304,6 +308,19 @@ class Predictor:
         self.rollouts = 0.0  # in full-recording equivalents
         self._scratch: dict = {}  # rollout MjData per model signature (_datas)
 
+    def _model(self, structure: Structure):
+        """The compiled model a structure is simulated on (memoised): the single joint's."""
+        return _compile(*structure.model_params())
+
+    def _joint(self, model):
+        """The joint the recording measures, in ``model``."""
+        return joint_indices(model)[0]
+
+    def on(self, measured: Measured) -> "Predictor":
+        """A predictor of the same model kind and windows for other measurements (a twin of the
+        recording, ``diagnosis.floor``), scoring every signal they hold."""
+        return Predictor(measured, self.design, self.nthread)
+
     # ---- measured ----------------------------------------------------------------------
     def measured_windows(self) -> dict[str, np.ndarray | None]:
         idx = self.samples
@@ -320,7 +337,7 @@ class Predictor:
     def predict(self, structures: list[Structure], windows: np.ndarray | None = None) -> list[dict[str, np.ndarray]]:
         """Predicted q, theta, delta, tau (windows x samples) for each structure."""
         windows = np.arange(len(self.starts)) if windows is None else np.asarray(windows)
-        stable = [_stable(_compile(*s.model_params())) for s in structures]
+        stable = [_stable(self._model(s)) for s in structures]
         if not all(stable):
             # Explicitly unstable parameters are not simulated: they score as NaN (worst).
             good = [s for s, ok in zip(structures, stable) if ok]
@@ -329,16 +346,15 @@ class Predictor:
             return [next(done) if ok else {k: nan for k in ("q", "theta", "delta", "tau")} for ok in stable]
         models, delays, skews = [], [], []
         for s in structures:
-            arm, joint = s.model_params()
-            delays.append(arm.input_delay)
+            delays.append(s.model_params()[0].input_delay)
             skews.append(s.skew)
-            models.append(_compile(arm, joint))
+            models.append(self._model(s))
         sig = {_signature(m) for m in models}
         if len(sig) > 1:
             return [self.predict([s], windows)[0] for s in structures]
         for mod in models:
             register_model(mod)  # a memoised model's registry row may have been recycled
-        jis = [joint_indices(mod)[0] for mod in models]  # parsed once per model and call
+        jis = [self._joint(mod) for mod in models]  # parsed once per model and call
         i0 = self.starts[windows]
         x0 = np.concatenate([self._start_states(mod, ji, d, windows, k)
                              for mod, d, ji, k in zip(models, delays, jis, skews)])
@@ -364,10 +380,10 @@ class Predictor:
         Returns q, theta, delta, tau over the whole recording (samples no run reaches, before
         a recording's first window, keep the measured values; NaN where the run diverged).
         """
-        arm, joint = structure.model_params()
-        model = _compile(arm, joint)
+        arm = structure.model_params()[0]
+        model = self._model(structure)
         register_model(model)
-        ji = joint_indices(model)[0]
+        ji = self._joint(model)
         sub = self._substeps(model)
         m = self.m
         measured = {"q": m.q, "theta": m.theta, "delta": m.delta, "tau": m.tau}
@@ -397,8 +413,8 @@ class Predictor:
         for a in range(0, nrow, chunk):
             b = min(a + chunk, nrow)
             with mujoco_log_silenced():
-                mj_rollout.rollout(models[a:b], datas, x0[a:b], ctrl[a:b], state=state[:b - a],
-                                   sensordata=sens[:b - a], persistent_pool=True)
+                mj_rollout.rollout(models[a:b], datas, x0[a:b], ctrl[a:b], control_spec=self.control_spec,
+                                   state=state[:b - a], sensordata=sens[:b - a], persistent_pool=True)
             yield a, b, state[:b - a]
 
     def _datas(self, model) -> list:
