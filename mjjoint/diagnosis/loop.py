@@ -11,6 +11,9 @@ Each round:
    (stand-ins for a missing effect need not sit at its site: a delay's phase lag in the
    load's viscous coefficient; docs/diagnosis.md);
 4. the candidate that lowers the HELD-OUT cost most is named if it passes both tests below;
+   if none does and a located condition is significant, the generic forms that condition points
+   to (``identify.generic``: the open vocabulary, named by site and form) are screened and
+   judged the same way;
    it is added, the whole structure refitted (least squares, then under the robust loss over
    windows, kept if that lowers the held-out cost: ``DiagnoseOptions.robust_refit``), and the
    next round starts;
