@@ -25,7 +25,6 @@ from .friction import LuGre, MaxwellSlip, PositionDependence
 from .gear import BoucWenLaw, PlayHysteresis, dead_zone
 
 MAX_RATE_STEP = 0.5  # h times the bristle's relaxation rate (accuracy, well inside RK4's 2.78)
-LOAD_VEPS = 2e-3   # [rad/s] sign regularisation of the load bearing's Coulomb friction
 
 
 @dataclass(frozen=True)
@@ -56,6 +55,7 @@ class JointPlant:
     gravity_moment: float               # m g l of the rigid link part [N m]
     load_coulomb: float = 0.0
     load_viscous: float = 0.0
+    load_veps: float = 2e-3             # [rad/s] sign regularisation of the load's Coulomb friction
     friction: LuGre | MaxwellSlip | None = None
     position_friction: PositionDependence | None = None
     cogging: Cogging | None = None
@@ -115,7 +115,7 @@ class JointPlant:
         cog = 0.0 if self.cogging is None else self.cogging.torque(s[0])
         d[0] = s[1]
         d[1] = (ue + cog - fric - t_gear / self.gear_ratio) / self.motor_inertia
-        load = self.load_coulomb * math.tanh(s[3] / LOAD_VEPS) + self.load_viscous * s[3]
+        load = self.load_coulomb * math.tanh(s[3] / self.load_veps) + self.load_viscous * s[3]
         rod_torque = 0.0
         if self.rod is not None:
             r = self.rod

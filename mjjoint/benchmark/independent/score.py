@@ -73,11 +73,12 @@ def score_diagnosis(case: OutsideCase, diag, seconds: float) -> OutsideScore:
                         after[worst], true_floor[worst], diag.verdict, seconds, list(diag.stand_ins))
 
 
-def run_case(name: str, seed: int, folder: Path, duration: float = 6.0, progress=None) -> OutsideScore:
-    """Record the case, write its CSV, diagnose the CSV as a user would, and score it."""
+def run_case(name: str, seed: int, folder: Path, duration: float = 6.0, progress=None, options=None) -> OutsideScore:
+    """Record the case, write its CSV, diagnose the CSV as a user would (``options``: a
+    ``DiagnoseOptions``, default the command line's), and score it."""
     from ... import diagnose  # the public API, as ``mjjoint diagnose`` runs it
     case = make_case(name, seed, duration)
     path = write_csv(folder / "recording.csv", record(case.plant, case.excitation, case.sensors, seed))
     start = time.perf_counter()
-    diag = diagnose(path, gear_ratio=case.plant.gear_ratio, base=list(case.base), progress=progress)
+    diag = diagnose(path, gear_ratio=case.plant.gear_ratio, base=list(case.base), progress=progress, options=options)
     return score_diagnosis(case, diag, time.perf_counter() - start)
