@@ -40,12 +40,13 @@ def main(argv=None) -> int:
                   f"{s.nrmse_after:.3f} (true floor {s.true_floor:.3f}) {'PASS' if s.passed else 'FAIL'}\n"
                   f"[{name}] verdict: {s.verdict}", flush=True)
     print("\n| case | seed | hidden physics | named | right | honest | false additions | explained | "
-          "worst signal: NRMSE before -> after (true floor) | s | pass |\n|" + "---|" * 11)
+          "worst signal: NRMSE before -> after (true floor; tool's floor) | s | pass |\n|" + "---|" * 11)
     for s in rows:
         print(f"| {s.case} | {s.seed} | {CASES[s.case][0]} | {', '.join(s.named) or '-'} | {'yes' if s.right else '-'} | "
               f"{'yes' if s.honest else '-'} | {', '.join(s.false_additions) or 'none'} | "
               f"{'**yes, above**' if s.explained_above_floor else ('yes' if s.explained else 'no')} | "
-              f"{s.worst} {s.nrmse_before:.3f} -> {s.nrmse_after:.3f} ({s.true_floor:.3f}) | {s.seconds:.0f} | "
+              f"{s.worst} {s.nrmse_before:.3f} -> {s.nrmse_after:.3f} ({s.true_floor:.3f}; {s.tool_floor:.3f}) | "
+              f"{s.seconds:.0f} | "
               f"{'yes' if s.passed else '**no**'} |")
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "summary.json").write_text(json.dumps([{**s.__dict__, "passed": s.passed} for s in rows], indent=1))

@@ -40,6 +40,7 @@ class OutsideScore:
     verdict: str
     seconds: float
     stand_ins: list[str] = field(default_factory=list)
+    tool_floor: float = 0.0     # the tool's own floor of the worst signal (its twin's windowing included)
 
     @property
     def passed(self) -> bool:
@@ -70,7 +71,8 @@ def score_diagnosis(case: OutsideCase, diag, seconds: float) -> OutsideScore:
     return OutsideScore(case.name, case.seed, list(diag.missing), bool(found),
                         (not diag.explained) and located(diag.verdict), false, bool(diag.explained),
                         bool(diag.explained) and ratio[worst] > FAR, worst, diag.initial.nrmse_test[worst],
-                        after[worst], true_floor[worst], diag.verdict, seconds, list(diag.stand_ins))
+                        after[worst], true_floor[worst], diag.verdict, seconds, list(diag.stand_ins),
+                        float(floor["nrmse"][worst]))
 
 
 def run_case(name: str, seed: int, folder: Path, duration: float = 6.0, progress=None, options=None) -> OutsideScore:
