@@ -40,6 +40,7 @@ QUANTUM_SHARE = 0.95
 # in another regime (module doc): it gives no floor.
 TWIN_SPREAD = 2.0
 QUANTUM_TOL = 1e-2
+FEW_STEPS = 20  # changes up to this many steps refine the step's estimate
 
 
 @dataclass(frozen=True)
@@ -83,6 +84,12 @@ def quantisation_step(x: np.ndarray) -> float:
     if d.size < 10:
         return 0.0
     step = float(np.min(d))
+    # Refined over the changes of a few steps: values printed to ~10 significant digits carry the
+    # smallest change only to ~1e-4 of a step, which a change of 1000 steps multiplies past the
+    # tolerance (a motor encoder at speed).
+    small = d[d < (FEW_STEPS + 0.5) * step]
+    k = np.round(small / step)
+    step = float(np.dot(small, k) / np.dot(k, k))
     k = d / step
     on_grid = np.abs(k - np.round(k)) <= QUANTUM_TOL
     return step if np.mean(on_grid) >= QUANTUM_SHARE else 0.0

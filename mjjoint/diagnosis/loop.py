@@ -46,7 +46,9 @@ Verdict: the final model's held-out NRMSE is judged against the recording's nois
 explained to the noise, nothing missing; effects found and the rest explained; effects found but
 a mismatch remains (which signal, how far above its floor, where and under which conditions);
 nothing in the catalogue explains the located mismatch. Parameters the final fit left on a
-bound are named as stand-ins.
+bound are named as stand-ins. A candidate whose screen ended above the model it extends (its
+fit did not converge: the candidate contains that model) is not ruled out by it; while the
+model misses its floor, the verdict names such screens (``unresolved_screens``).
 
 Effects that act mainly under one operating condition (``Effect.acts_under``: 2SEP's pre-sliding and
 lag, Stribeck's break-away, after motor velocity reversals) are also rank-tested on the held-out
@@ -156,6 +158,7 @@ class Diagnosis:
     explained: bool = False
     stand_ins: dict[str, str] = field(default_factory=dict)   # parameter -> which bound it sits on
     unstable: dict[str, str] = field(default_factory=dict)    # screened candidate -> why unstable
+    unresolved: dict[str, float] = field(default_factory=dict)  # candidate -> its screen's held-out cost / the reference's
 
     @property
     def missing(self) -> list[str]:
@@ -173,6 +176,7 @@ class Diagnosis:
                 "explained": self.explained,
                 "stand_ins": self.stand_ins,
                 "unstable_screens": self.unstable,
+                "unresolved_screens": self.unresolved,
                 "verdict": self.verdict,
                 "budget": {"rollouts_full_length": round(self.rollouts, 1)}}
 
@@ -293,6 +297,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     steps: list[Step] = []
     unstable: dict[str, str] = {}
     rejected = ""  # why the last round's best candidate was not added, for the verdict
+    unresolved: dict[str, float] = {}  # the last round's screens that ended above their reference
     clock = ScreenClock(options.max_rounds)
     for k in range(1, options.max_rounds + 1):
         where = residual_location(predictor, current.structure)
@@ -322,6 +327,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             if not g_choice.failed:
                 choice, ref, screened, screen = g_choice, g_ref, g_screened, "generic form"
         best, cand, gain = choice.best, choice.cand, choice.gain
+        unresolved = unresolved_screens(screened, ref.cost_test)
         if choice.failed:
             rejected = (f"the best candidate, {best}, lowers the held-out cost by {100 * gain:.1f} % "
                         f"but fails: {', '.join(choice.failed)}")
@@ -353,6 +359,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             consistency=consistency, screen=screen))
         current = refit
         history.append(current)
+        unresolved = {}  # screened against the model before this addition
     if options.robust_final:
         say("final estimate: refitting under the robust loss over windows")
         robust, keep = _robust(predictor, current, options, iterations)
@@ -374,10 +381,12 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         # the recording above its floor carries the miss in its parameters, uncounted.
         current = dataclasses.replace(current, warnings=[*current.warnings, UNEXPLAINED_INTERVALS])
     bounds = stand_ins(current)
-    verdict = _verdict(steps, initial, current, floor, explained, final_where, rejected, bounds)
+    if explained:
+        unresolved = {}
+    verdict = _verdict(steps, initial, current, floor, explained, final_where, rejected, bounds, unresolved)
     return Diagnosis(steps, initial, current, final_where, verdict,
                      predictor.rollouts - roll0, time.perf_counter() - t_start, history,
-                     floor, explained, bounds, unstable)
+                     floor, explained, bounds, unstable, unresolved)
 
 
 UNEXPLAINED_INTERVALS = ("the final model misses the recording above its noise floor: its 95 % intervals assume "
@@ -394,8 +403,21 @@ def stand_ins(result: FitResult) -> dict[str, str]:
     return out
 
 
+# A screen whose held-out cost ends this factor above the model it extends did not converge: the
+# candidate contains that model (a Bouc-Wen gear with mu = 1 is the linear spring, a stiff rod the
+# rigid one), so its own optimum is at most as high; the screen says nothing against it.
+UNRESOLVED_RATIO = 1.1
+
+
+def unresolved_screens(screened: dict[str, tuple[float, FitResult]], ref_cost: float) -> dict[str, float]:
+    """{candidate: held-out cost over ``ref_cost``} of the screens that ended UNRESOLVED_RATIO or
+    more above the reference they extend, worst first (unstable ones included)."""
+    ratios = {k: float(c / ref_cost) if np.isfinite(c) else float("inf") for k, (c, _) in screened.items()}
+    return dict(sorted(((k, r) for k, r in ratios.items() if r >= UNRESOLVED_RATIO), key=lambda kv: -kv[1]))
+
+
 def _verdict(steps: list[Step], initial: FitResult, final: FitResult, floor: Floor, explained: bool,
-             where: dict, rejected: str, stand_ins: dict[str, str]) -> str:
+             where: dict, rejected: str, stand_ins: dict[str, str], unresolved: dict[str, float] | None = None) -> str:
     """One of the four verdicts (module doc), in one paragraph."""
     found = {e for s in steps for e in s.effects}
 
@@ -414,6 +436,11 @@ def _verdict(steps: list[Step], initial: FitResult, final: FitResult, floor: Flo
                 + (f"; {rejected}" if rejected else ""))
     if steps:
         text += f" (held-out cost {initial.cost_test:.4g} -> {final.cost_test:.4g})"
+    if unresolved and not explained:
+        # "No catalogued effect explains it" holds only for the candidates whose fits converged.
+        text += ("; not ruled out, their screens ended above the model they extend (fits that did not "
+                 "converge): " + ", ".join(f"{k.replace(BUNDLE, ' + ')} ({r:.3g}x its held-out cost)"
+                                          for k, r in unresolved.items()))
     if stand_ins:
         text += ("; on a bound, stand-ins rather than estimates: "
                  + ", ".join(f"{k} = {final.structure.values[k]:.4g} ({v})" for k, v in stand_ins.items()))

@@ -55,6 +55,9 @@ SLOPE_STEP = 0.2
 # frequencies where the input's power is above EXCITED of its peak (elsewhere H is noise).
 PEAK_RATIO = 5.0
 EXCITED = 1e-3
+# The link is started from the recording (``_link_start``) where its estimated inertia lies this
+# many decades or more from the nominal arm's: rounded to its decade, as the orders are.
+LINK_DECADE = 0.5
 
 
 @dataclass(frozen=True)
@@ -103,11 +106,12 @@ def amplitude(x: np.ndarray) -> float:
     return float(np.percentile(np.abs(x - np.median(x)), AMPLITUDE_PERCENTILE))
 
 
-def estimate(measured, link_inertia: float | None = None) -> Estimate:
+def estimate(measured, link_inertia: float | None = None, arm=None) -> Estimate:
     """The recording's orders and regression estimates (module doc).
 
     ``measured``: a ``windows.Measured`` (theta None for a direct drive). ``link_inertia``
-    [kg m^2]: the nominal output-side inertia, for the stiffness from a resonance.
+    [kg m^2]: the nominal output-side inertia, for the stiffness from a resonance. ``arm``: the
+    nominal ``ArmSpec``, whose link is started from the recording where it is of another size.
     """
     m = measured
     # One zero-phase low-pass for every signal, derivatives after it: the filter commutes with
@@ -129,6 +133,9 @@ def estimate(measured, link_inertia: float | None = None) -> Estimate:
         values.update(_motor_regression(smooth(m.u) - smooth(m.tau) / m.gear_ratio, v, a, speed, guard))
         delta = smooth(m.delta)
         values.update(_stiffness_regression(delta, rate(delta), smooth(m.tau)))
+        if arm is not None:
+            w = rate(smooth(m.theta))
+            values.update(_link_start(arm, smooth(m.tau), smooth(m.theta), w, rate(w), guard))
     else:
         # No gear torque: the rigid joint's equation, its inertia J_m + J_l / N^2, the link's
         # gravity torque as two more columns (its zero angle unknown).
@@ -143,6 +150,35 @@ def estimate(measured, link_inertia: float | None = None) -> Estimate:
             j_red = 1.0 / (1.0 / link_inertia + 1.0 / (values["inertia.motor"] * m.gear_ratio ** 2))
             values["linear_stiffness.k1"] = j_red * (2.0 * math.pi * resonance) ** 2
     return Estimate(force, speed, values, resonance)
+
+
+def _link_start(arm, tau: np.ndarray, theta: np.ndarray, w: np.ndarray, a: np.ndarray, guard: int) -> dict[str, float]:
+    """The link's tip mass, gravity and bearing friction from tau = J_L a + G sin(theta) +
+    Fl sgn(w) + dl w + c, on the samples where the link moves clearly; returned only where the
+    link's inertia is a decade or more off the nominal arm's (``LINK_DECADE``), so a link of the
+    nominal's size starts from the catalogue as before. A hub-inertia link (no tip mass) and a
+    fit that finds no positive inertia give nothing."""
+    if not arm.tip_mass > 0:
+        return {}
+    speed = amplitude(w)
+    moving = (np.abs(w) > MOVING_SHARE * speed) & ~near_reversal(w, guard)
+    if moving.sum() < 10 or not speed > 0:
+        return {}
+    cols = np.column_stack([a, np.sin(theta), np.sign(w), w, np.ones_like(w)])[moving]
+    norms = np.linalg.norm(cols, axis=0)
+    norms[norms == 0] = 1.0
+    j_link, moment, fl, dl, _ = (float(x) for x in np.linalg.lstsq(cols / norms, tau[moving], rcond=None)[0] / norms)
+    if not j_link > 0 or abs(math.log10(j_link / arm.link_inertia)) < LINK_DECADE:
+        return {}
+    length = arm.rod_length
+    tip = (j_link - arm.hub_inertia - arm.rod_mass * length ** 2 / 3) / length ** 2
+    if not tip > 0:
+        return {}
+    out = {"mass.tip": tip}
+    if moment > 0:
+        out["gravity.g"] = moment / (arm.rod_mass * length / 2 + tip * length)
+    out.update({k: v for k, v in (("load_friction.fc", fl), ("load_friction.viscous", dl)) if v > 0})
+    return out
 
 
 def _positive(x: float, fallback: float) -> float:

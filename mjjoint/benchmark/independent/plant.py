@@ -1,0 +1,209 @@
+"""The seed's elastic joint (Ruderman 2012, Sec. 2-3), written independently of mjjoint's
+simulator: its own equations, integrated with a fixed-step classical Runge-Kutta (RK4) in
+numpy, no MuJoCo, no mjjoint.physics or coupling kernel.
+
+    motor   J q''  = u_e + c(q) - F(q, q', ...) - T / N                    (Eq. 4, 6)
+    gear    delta = q/N - theta, de = dead_zone(delta, b), T = Gamma(de, ...) + D de'  (Eqs. 7, 16-18)
+    link    J_L theta'' = T - m g l_h sin(theta) - F_L(theta') - R            (Eq. 9)
+    rod     J_t phi'' = R - m g l_t sin(phi),  R = k_r (theta - phi) + d_r (theta' - phi')
+            (a flexible rod as a hub and a tip inertia joined by a torsional spring: a lumped
+            two-mass link, not the segmented rod of mjjoint's MJCF)
+
+u_e is the commanded torque u through an optional first-order current loop (time constant
+``current_lag``), c(q) an optional cogging torque, F the motor friction (``friction``), F_L
+the load bearing's Coulomb (tanh-regularised) and viscous friction. The measured transmission
+torque is T.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .friction import LuGre, MaxwellSlip, PositionDependence
+from .gear import BoucWenLaw, PlayHysteresis, dead_zone
+
+MAX_RATE_STEP = 0.5  # h times the bristle's relaxation rate (accuracy, well inside RK4's 2.78)
+
+
+@dataclass(frozen=True)
+class Cogging:
+    amplitude: float     # [N m]
+    per_rad: float       # spatial frequency in motor radians (any real number)
+    phase: float = 0.0
+
+    def torque(self, q: float) -> float:
+        return self.amplitude * math.sin(self.per_rad * q + self.phase)
+
+
+@dataclass(frozen=True)
+class Rod:
+    tip_inertia: float   # [kg m^2]
+    stiffness: float     # [N m/rad]
+    damping: float       # [N m s/rad]
+    tip_gravity: float   # m g l of the tip part [N m]
+
+
+@dataclass(frozen=True)
+class JointPlant:
+    gear_ratio: float
+    motor_inertia: float
+    link_inertia: float                 # hub (and rigid rod) [kg m^2]
+    stiffness: float                    # k [N m/rad], link side
+    damping: float                      # D [N m s/rad]
+    gravity_moment: float               # m g l of the rigid link part [N m]
+    load_coulomb: float = 0.0
+    load_viscous: float = 0.0
+    load_veps: float = 2e-3             # [rad/s] sign regularisation of the load's Coulomb friction
+    friction: LuGre | MaxwellSlip | None = None
+    position_friction: PositionDependence | None = None
+    cogging: Cogging | None = None
+    current_lag: float = 0.0            # [s]
+    backlash: float = 0.0               # total width [rad]
+    hysteresis: BoucWenLaw | PlayHysteresis | None = None
+    rod: Rod | None = None
+
+    # State layout: q, q', theta, theta', phi, phi', z (LuGre), x (Bouc-Wen), u_e, then the
+    # Maxwell elements, then the play operators.
+    @property
+    def n_maxwell(self) -> int:
+        return len(self.friction.stiffness) if isinstance(self.friction, MaxwellSlip) else 0
+
+    @property
+    def n_play(self) -> int:
+        return len(self.hysteresis.radii) if isinstance(self.hysteresis, PlayHysteresis) else 0
+
+    def initial_state(self, u0: float = 0.0) -> np.ndarray:
+        s = np.zeros(9 + self.n_maxwell + self.n_play)
+        s[8] = u0
+        return s
+
+    def transmission(self, s: np.ndarray) -> tuple[float, float, float]:
+        """(T, de, de') at state s."""
+        n = self.gear_ratio
+        de = dead_zone(s[0] / n - s[2], self.backlash)
+        if de == 0.0 and self.backlash > 0.0:
+            return 0.0, 0.0, 0.0
+        dde = s[1] / n - s[3]
+        h = self.hysteresis
+        if isinstance(h, BoucWenLaw):
+            spring = h.torque(self.stiffness, de, s[7])
+        elif isinstance(h, PlayHysteresis):
+            spring = h.torque(de, s[9 + self.n_maxwell:])
+        else:
+            spring = self.stiffness * de
+        return spring + self.damping * dde, de, dde
+
+    def motor_friction(self, s: np.ndarray) -> tuple[float, float, np.ndarray | None]:
+        """(friction torque, dz/dt of LuGre, dz/dt of the Maxwell elements)."""
+        f, v = self.friction, s[1]
+        scale = 1.0 if self.position_friction is None else self.position_friction.factor(s[0])
+        if isinstance(f, LuGre):
+            dz, torque = f.rates(v, s[6], f.fc * scale, self.motor_inertia)
+            return torque, dz, None
+        if isinstance(f, MaxwellSlip):
+            z = s[9:9 + self.n_maxwell]
+            return scale * f.spring(z) + f.sigma2 * v, 0.0, f.rates(v, z)
+        return 0.0, 0.0, None
+
+    def derivative(self, s: np.ndarray, u: float) -> np.ndarray:
+        d = np.zeros_like(s)
+        t_gear, de, dde = self.transmission(s)
+        fric, dz, dmax = self.motor_friction(s)
+        ue = s[8] if self.current_lag > 0 else u
+        cog = 0.0 if self.cogging is None else self.cogging.torque(s[0])
+        d[0] = s[1]
+        d[1] = (ue + cog - fric - t_gear / self.gear_ratio) / self.motor_inertia
+        load = self.load_coulomb * math.tanh(s[3] / self.load_veps) + self.load_viscous * s[3]
+        rod_torque = 0.0
+        if self.rod is not None:
+            r = self.rod
+            rod_torque = r.stiffness * (s[2] - s[4]) + r.damping * (s[3] - s[5])
+            d[4] = s[5]
+            d[5] = (rod_torque - r.tip_gravity * math.sin(s[4])) / r.tip_inertia
+        d[2] = s[3]
+        d[3] = (t_gear - self.gravity_moment * math.sin(s[2]) - load - rod_torque) / self.link_inertia
+        d[6] = dz
+        if isinstance(self.hysteresis, BoucWenLaw) and not (de == 0.0 and self.backlash > 0.0):
+            d[7] = self.hysteresis.rate(dde, s[7])
+        if self.current_lag > 0:
+            d[8] = (u - s[8]) / self.current_lag
+        if dmax is not None:
+            d[9:9 + self.n_maxwell] = dmax
+        if self.n_play:
+            d[9 + self.n_maxwell:] = self.hysteresis.rates(dde, de, s[9 + self.n_maxwell:])
+        return d
+
+    def project(self, s: np.ndarray) -> np.ndarray:
+        """Keep the rate-independent elements on their admissible sets after a step."""
+        if self.n_maxwell:
+            s[9:9 + self.n_maxwell] = self.friction.clip(s[9:9 + self.n_maxwell])
+        if self.n_play:
+            de = dead_zone(s[0] / self.gear_ratio - s[2], self.backlash)
+            s[9 + self.n_maxwell:] = self.hysteresis.clip(de, s[9 + self.n_maxwell:])
+        return s
+
+    def fast_rate(self, s: np.ndarray) -> float:
+        """The LuGre bristle's relaxation rate s0 |v| / g at state s [1/s] (0 without LuGre): the
+        stiffest eigenvalue at speed, which sets the RK4 step (``simulate``)."""
+        f = self.friction
+        if not isinstance(f, LuGre):
+            return 0.0
+        return abs(s[1]) / f.z0 * f.fc / min(f.fc, f.fs)
+
+    def step(self, s: np.ndarray, u: float, h: float) -> np.ndarray:
+        """One classical RK4 step of length h under a held input u."""
+        k1 = self.derivative(s, u)
+        k2 = self.derivative(s + 0.5 * h * k1, u)
+        k3 = self.derivative(s + 0.5 * h * k2, u)
+        k4 = self.derivative(s + h * k3, u)
+        return self.project(s + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4))
+
+    def energy(self, s: np.ndarray) -> float:
+        """Kinetic + spring + gravity energy (the conservative parts; no hysteresis, no play)."""
+        t_spring = 0.5 * self.stiffness * dead_zone(s[0] / self.gear_ratio - s[2], self.backlash) ** 2
+        e = 0.5 * self.motor_inertia * s[1] ** 2 + 0.5 * self.link_inertia * s[3] ** 2 + t_spring
+        e += self.gravity_moment * (1 - math.cos(s[2]))
+        if self.rod is not None:
+            r = self.rod
+            e += 0.5 * r.tip_inertia * s[5] ** 2 + 0.5 * r.stiffness * (s[2] - s[4]) ** 2
+            e += r.tip_gravity * (1 - math.cos(s[4]))
+        if isinstance(self.friction, MaxwellSlip):
+            z = s[9:9 + self.n_maxwell]
+            e += 0.5 * float(np.dot(self.friction.stiffness, z * z))
+        return e
+
+
+@dataclass
+class Trajectory:
+    t: np.ndarray
+    states: np.ndarray      # (n, state)
+    torque: np.ndarray      # transmission torque T at each sample
+    u: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+def simulate(plant: JointPlant, t: np.ndarray, input_at, substeps: int = 10, s0: np.ndarray | None = None
+             ) -> Trajectory:
+    """Integrate ``plant`` over the sample times ``t``; the input over [t_k, t_k+1) is
+    ``input_at(k, state_k)`` (a controller may read the state it measures), held constant."""
+    s = plant.initial_state() if s0 is None else np.array(s0, float)
+    n = len(t)
+    states = np.zeros((n, len(s)))
+    torque = np.zeros(n)
+    u = np.zeros(n)
+    for k in range(n):
+        states[k] = s
+        torque[k] = plant.transmission(s)[0]
+        if k == n - 1:
+            u[k] = u[k - 1] if k else 0.0
+            break
+        u[k] = input_at(k, s)
+        # RK4 is stable to h rate = 2.78: at least `substeps` steps, more while the bristle is fast.
+        m = max(substeps, math.ceil((t[k + 1] - t[k]) * 1.5 * plant.fast_rate(s) / MAX_RATE_STEP))
+        h = (t[k + 1] - t[k]) / m
+        for _ in range(m):
+            s = plant.step(s, u[k], h)
+        if not np.all(np.isfinite(s)):
+            raise FloatingPointError(f"the independent plant diverged at t = {t[k + 1]:.4g} s")
+    return Trajectory(t, states, torque, u)

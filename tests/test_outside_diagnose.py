@@ -1,0 +1,44 @@
+"""End to end: a recording of the independent plant, written as CSV, diagnosed as a user would,
+scored by the out-of-regime criteria (docs/benchmark.md, "Out-of-regime set")."""
+from __future__ import annotations
+
+import pytest
+
+from mjjoint.benchmark.independent.cases import CASES
+from mjjoint.benchmark.independent.score import FAR, run_case
+from mjjoint.diagnosis.loop import DiagnoseOptions
+
+
+def test_a_hysteretic_gear_of_the_independent_plant_is_named(tmp_path):
+    """A Bouc-Wen gear outside the development set's range (elastic share 0.6-0.8, x_u 4-8 mrad),
+    5 s, two rival gear candidates, one round: the hysteresis is named and the verdict is not
+    "explained" above the true sensors' floor."""
+    options = DiagnoseOptions(candidates=("transmission_hysteresis", "backlash"), max_rounds=1, fit_iter=10,
+                              screen_iter=6)
+    score = run_case("boucwen_soft", 0, tmp_path, duration=5.0, options=options)
+    assert (tmp_path / "recording.csv").exists()
+    assert score.named == ["transmission_hysteresis"] and score.right and not score.false_additions
+    assert score.nrmse_after < 0.5 * score.nrmse_before
+    assert not score.explained_above_floor
+    assert score.passed
+
+
+# The benchmark itself, with the issue's criteria (slow: ~3 min a case on 2 cores).
+KNOWN_FAILURES: dict[str, str] = {
+    "backlash_wide": "backlash named, then transmission_hysteresis added as a stand-in for the truth's "
+                     "sticking bearings (docs/benchmark.md, Out-of-regime set)",
+    "small_motor": "explained at 1.47x the tool's floor, whose windowing part (its twin, 0.032-0.034) is "
+                   "3x the true sensors' floor; the scorer cannot check the twin independently",
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(CASES))
+def test_out_of_regime_case(name, tmp_path):
+    if name in KNOWN_FAILURES:
+        pytest.xfail(KNOWN_FAILURES[name])
+    score = run_case(name, 0, tmp_path)
+    assert not score.false_additions, score.verdict
+    assert not score.explained_above_floor, f"explained at {score.worst} NRMSE {score.nrmse_after:.3g} > " \
+                                            f"{FAR} x the true floor {score.true_floor:.3g}"
+    assert score.right or score.honest or (not score.named and score.explained), score.verdict

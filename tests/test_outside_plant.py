@@ -1,0 +1,82 @@
+"""The independent plant obeys its physics: energy, steady-state friction, its integrator's order."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mjjoint.benchmark.independent import JointPlant, LuGre, MaxwellSlip, Rod, simulate
+from mjjoint.benchmark.independent.cases import CASES, make_case
+from mjjoint.benchmark.independent.record import Excitation, quantise
+
+
+def _conservative(**over) -> JointPlant:
+    values = dict(gear_ratio=100.0, motor_inertia=1e-4, link_inertia=0.2, stiffness=4000.0, damping=0.0,
+                  gravity_moment=4.0, rod=Rod(tip_inertia=0.1, stiffness=500.0, damping=0.0, tip_gravity=2.0))
+    values.update(over)
+    return JointPlant(**values)
+
+
+def _released(plant: JointPlant, duration: float, substeps: int) -> np.ndarray:
+    """States of the plant released at rest from a wound-up gear and a raised link, u = 0."""
+    s0 = plant.initial_state()
+    s0[0], s0[2], s0[4] = 0.5 * plant.gear_ratio, 0.4, 0.45
+    t = np.arange(0.0, duration, 1e-3)
+    return simulate(plant, t, lambda k, s: 0.0, substeps, s0).states
+
+
+def test_a_conservative_joint_keeps_its_energy():
+    plant = _conservative()
+    states = _released(plant, 1.0, 10)
+    energy = np.array([plant.energy(s) for s in states])
+    assert np.ptp(energy) < 1e-6 * energy[0]
+    assert np.ptp(states[:, 2]) > 0.1  # it did move
+
+
+def test_dissipation_only_removes_energy():
+    """With gear damping, a load bearing and LuGre friction the stored energy never rises at u = 0
+    beyond the bristle's small store."""
+    plant = _conservative(damping=2.0, load_coulomb=0.3, load_viscous=0.05,
+                          friction=LuGre(fc=0.03, fs=0.04, vs=1.0, sigma2=2e-4))
+    energy = np.array([plant.energy(s) for s in _released(plant, 1.0, 10)])
+    assert np.all(np.diff(energy) < 1e-6 * energy[0])
+    assert energy[-1] < 0.5 * energy[0]
+
+
+@pytest.mark.parametrize("friction, level", [
+    (LuGre(fc=0.03, fs=0.05, vs=2.0, sigma2=1e-3, z0=0.05), 0.03),
+    (MaxwellSlip(stiffness=(40.0, 10.0), slip=(0.02, 0.01), sigma2=1e-3), 0.03)])
+def test_steady_sliding_friction_is_the_coulomb_level_plus_viscous(friction, level):
+    """A constant input on a joint without gravity ends at the speed where it balances the
+    friction: u = Fc + sigma v + (Fl + dl v / N) / N."""
+    plant = JointPlant(gear_ratio=50.0, motor_inertia=1e-4, link_inertia=0.05, stiffness=2000.0, damping=1.0,
+                       gravity_moment=0.0, load_coulomb=0.1, load_viscous=0.02, friction=friction)
+    u = 0.05
+    states = simulate(plant, np.arange(0.0, 1.5, 1e-3), lambda k, s: u, 10).states
+    n = plant.gear_ratio
+    v = (u - level - plant.load_coulomb / n) / (friction.sigma2 + plant.load_viscous / n ** 2)
+    assert states[-1, 1] == pytest.approx(v, rel=1e-3)
+
+
+def test_rk4_converges_at_fourth_order():
+    """On smooth physics each halving of the step cuts the error ~16x (a Bouc-Wen |.| or a dead
+    zone's corner lower the order locally: those converge, more slowly)."""
+    plant = _conservative(damping=1.0)
+    ref = _released(plant, 0.2, 64)[-1]
+    err = [np.abs(_released(plant, 0.2, m)[-1] - ref)[:4].max() for m in (2, 4, 8)]
+    assert err[0] / err[1] > 12.0 and err[1] / err[2] > 12.0
+
+
+def test_quantised_sensors_sit_on_their_grid():
+    x = np.linspace(-3, 3, 1001)
+    step = 2 * np.pi / 2 ** 12
+    assert np.allclose(quantise(x, 12) / step, np.round(quantise(x, 12) / step))
+    assert np.max(np.abs(quantise(x, 12) - x)) <= step / 2 + 1e-12
+
+
+def test_every_case_draws_a_plant_and_the_reference_is_continuous():
+    for name in CASES:
+        case = make_case(name, 0)
+        assert case.plant.gear_ratio > 1 and case.plant.motor_inertia > 0
+    t = np.arange(0.0, 6.0, 1e-3)
+    ref = Excitation(seed=3).reference(t)
+    assert np.max(np.abs(np.diff(ref))) < 2e-3   # no jumps: a closed loop would kick the joint
