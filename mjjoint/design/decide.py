@@ -8,7 +8,10 @@ comparison weigh the signals as the criterion did (the deflection is predicted t
 encoder's resolution, 2.2e-6 rad on the offset/asymmetry pair against a spread of ~1e-3 rad,
 the motor angle to its start-velocity drift, 0.05 rad).
 
-The rival with the lower held-out cost wins; the evidence is the relative cost difference and
+The rival with the lower held-out cost wins; the evidence is the realised log-likelihood ratio
+over the held-out windows (the residuals in floor units are the Gaussian's: half the difference
+of the rivals' sums of squares; what the design's criterion predicts), the relative cost
+difference and
 a one-sided Wilcoxon signed-rank test of the per-window differences (are the loser's held-out
 windows consistently worse, not just a few). The decision is only called ``decisive`` when the
 test holds at ``max_p``; otherwise the winner is the better fit, no more.
@@ -35,6 +38,7 @@ class Decision:
     relative_gap: float      # (loser - winner) / loser held-out cost
     p_value: float           # one-sided signed-rank test of per-window held-out differences
     fits: dict[str, FitResult]
+    llr: float = 0.0         # realised log-likelihood ratio, winner over loser, held-out windows [nats]
 
     @property
     def decisive(self) -> bool:
@@ -43,7 +47,7 @@ class Decision:
     def as_dict(self) -> dict:
         return {"winner": self.winner, "loser": self.loser, "decisive": self.decisive,
                 "cost_heldout": self.cost_heldout, "relative_gap": self.relative_gap,
-                "wilcoxon_p": self.p_value, "max_p": MAX_P,
+                "wilcoxon_p": self.p_value, "max_p": MAX_P, "log_likelihood_ratio_nats": self.llr,
                 "fits": {k: v.as_dict() for k, v in self.fits.items()}}
 
 
@@ -67,4 +71,6 @@ def decide(rivals: tuple[Rival, Rival], recording, floor: dict[str, float], wind
     p = float(wilcoxon(diff, alternative="greater").pvalue) if np.any(diff != 0) else 1.0
     held = {k: float(v.mean()) for k, v in costs.items()}
     gap = (held[loser] - held[winner]) / held[loser] if held[loser] > 0 else 0.0
-    return Decision(winner, loser, held, float(gap), p, fits)
+    # window_costs are mean squares over each window's scored samples (signals x cost columns).
+    per_window = len(predictor.signals) * len(predictor.cols)
+    return Decision(winner, loser, held, float(gap), p, fits, float(0.5 * per_window * diff.sum()))
