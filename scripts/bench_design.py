@@ -18,6 +18,7 @@ tied: costs within TIE), share where the design beats the chirp, limits ever exc
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import time
@@ -46,11 +47,13 @@ def main() -> None:
     ap.add_argument("--max-iter", type=int, default=10, help="LM iterations per fit")
     ap.add_argument("--rehearse", type=int, default=2, help="best inputs whose decision is rehearsed")
     ap.add_argument("--loop", action="store_true", help="closed loop: design references for a PD on the motor")
+    ap.add_argument("--duration", type=float, default=LIMITS.duration, help="original and designed record [s]")
     ap.add_argument("--json", help="write every case's result here")
     args = ap.parse_args()
     options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws, rehearse=args.rehearse)
     loop = Controller() if args.loop else None
-    print(f"limits: {LIMITS}; search: {options}; loop: {loop}; load average {os.getloadavg()[0]:.1f}")
+    limits = dataclasses.replace(LIMITS, duration=args.duration)
+    print(f"limits: {limits}; search: {options}; loop: {loop}; load average {os.getloadavg()[0]:.1f}")
     header = ("pair", "truth", "seed", "tie", "family", "D", "D chirp", "truth usage", "D held-out",
               "rehearsed", "realised", "winner", "p")
     print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
@@ -59,7 +62,8 @@ def main() -> None:
     for pair in args.pairs.split(","):
         for seed in range(args.first_seed, args.first_seed + args.seeds):
             for side in (0, 1):
-                r = run_case(make_design_case(pair, side, seed), LIMITS, options, max_iter=args.max_iter, loop=loop)
+                r = run_case(make_design_case(pair, side, seed, args.duration), limits, options,
+                             max_iter=args.max_iter, loop=loop)
                 results.append(r)
                 if r["family"] is None:
                     print(f"| {pair} | {r['truth']} | {seed} | {tie(r):.1%} | none within "
@@ -68,7 +72,8 @@ def main() -> None:
                 chirp = f"{r['D_chirp']:.3g}" + ("" if r["chirp_feasible"] else " (over limits)")
                 rehearsed = "" if r["rehearsed"] is None else f"{r['rehearsed']:.3g}"
                 print(f"| {pair} | {r['truth']} | {seed} | {tie(r):.1%} | {r['family']} | "
-                      f"{r['D']:.3g} | {chirp} | {r['truth_usage']:.2f}{'' if not r['truth_violations'] else ' (NO)'} | "
+                      f"{r['D']:.3g} | {chirp} | "
+                      f"{r['truth_usage']:.2f}{'' if not r['truth_violations'] else ' (NO)'} | "
                       f"{r['D_heldout']:.3g} | {rehearsed} | {r['llr']:.3g} | "
                       f"{r['winner']}{'' if r['correct'] else ' (wrong)'} | {r['p']:.2g} |", flush=True)
     print(f"\n{time.perf_counter() - start:.0f} s in all")

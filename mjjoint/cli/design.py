@@ -4,8 +4,10 @@ The rivals are the base model plus either effect (``--rivals A,B`` over ``--base
 or the named effect and its ``indistinguishable_from`` rival of a diagnosis, ``--diagnosis
 DIR``), each fitted to the recording REC, with 95 % intervals. The search
 (``design.optimise``) returns the input, within the limits, that maximises the expected
-log-likelihood ratio between them. ``--decide NEW_REC``: after running it, fit both rivals to
-the new recording and name the one it supports (``design.decide``).
+log-likelihood ratio between them, the best few checked by rehearsing the decision; with
+``--controller``, a link-angle reference for that controller (``design.loop``).
+``--decide NEW_REC``: after running it, fit both rivals to the new recording and name the one
+it supports (``design.decide``).
 """
 from __future__ import annotations
 
@@ -32,13 +34,15 @@ examples:
   mjjoint design rec.csv --gear-ratio 160 --base coulomb_friction,viscous_friction,gravity,linear_stiffness \\
       --rivals input_offset,friction_asymmetry --max-torque 0.2 --max-speed 60 --angle-range 0.8 --duration 5
   mjjoint design rec.csv --diagnosis out/diagnose --signals q,theta --out out/design
+  mjjoint design rec.csv --diagnosis out/diagnose --controller pd --out out/design   # a reference
   mjjoint design rec.csv --diagnosis out/diagnose --decide new.csv --out out/decide
 
-writes DIR/experiment.csv (t,u: 'mjjoint simulate --excitation file --file DIR/experiment.csv'),
-design.json (the expected log-likelihood ratio D, the default chirp's, limits, noise floor,
-rivals), responses.png / responses.rrd (both rivals side by side, separation marked),
-index.html and run.json; with --decide: decision.json (winner, held-out costs, signed-rank p)
-and index.html. DIR appears only when complete.
+writes DIR/experiment.csv (t,u: 'mjjoint simulate --excitation file --file DIR/experiment.csv';
+with --controller t,theta_ref: 'mjjoint simulate --controller pd --reference DIR/experiment.csv'),
+design.json (the expected log-likelihood ratio D, the default chirp's, the rehearsed decisions,
+limits, noise floor, rivals), responses.png / responses.rrd (both rivals side by side, separation
+marked), index.html and run.json; with --decide: decision.json (winner, held-out costs, realised
+log-likelihood ratio, signed-rank p) and index.html. DIR appears only when complete.
 """
 
 

@@ -48,7 +48,8 @@ def prediction_floor(predictor: Predictor, structures, windows=None) -> dict[str
                          for p in preds)) for s in predictor.signals}
 
 
-def input_floor(models, traces, window: WindowDesign = WindowDesign(), sensors: Sensors = Sensors()) -> dict[str, float]:
+def input_floor(models, traces, window: WindowDesign = WindowDesign(),
+                sensors: Sensors = Sensors()) -> dict[str, float]:
     """The noise floor of the recording a candidate input would give: each rival's run of it
     (``traces``) logged by the lab's sensors and predicted by that rival itself in every window,
     the rms error per signal; the two rivals' combined as the root of their mean square. The

@@ -79,7 +79,8 @@ def plot_responses(d: Design, path: Path) -> Path:
         for k, (rival, tr) in enumerate(zip(d.rivals, best.traces)):
             axes[0].plot(t, tr.u, color=COLORS[k], lw=0.8, label=f"u, {rival.effect}")
         axes[0].legend(loc="upper right", fontsize="small")
-    axes[0].set(ylabel="u [N m]" if d.loop is None else "theta_ref, u", title=f"designed input: {best.family}, D = {best.score:.3g} nats "
+    axes[0].set(ylabel="u [N m]" if d.loop is None else "theta_ref, u",
+                title=f"designed input: {best.family}, D = {best.score:.3g} nats "
                                         f"(default chirp {d.reference.score:.3g})")
     for ax, s in zip(axes[1:], d.limits.signals):
         for k, (rival, tr) in enumerate(zip(d.rivals, best.traces)):

@@ -144,7 +144,7 @@ class Evaluator:
 
     def point(self, family: str, point) -> Candidate:
         point = tuple(float(v) for v in np.clip(point, 0.0, 1.0))
-        excitation, u = programme(family, point, self.limits, self.peak)
+        excitation, u = programme(family, point, self.limits, self.peak, log_amplitude=self.loop is not None)
         return self.input(family, point, excitation, u)
 
 
@@ -203,7 +203,8 @@ def design(rivals: tuple[Rival, Rival], noise: dict[str, float] | None, limits: 
     for family in options.families:
         dim = FAMILIES[family][0]
         points = list(qmc.Sobol(dim, scramble=True, seed=options.seed).random(options.starts))
-        seed_point = chirp_point(ref.excitation, limits, ev.peak) if family == "chirp" and ref.feasible else None
+        seed_point = (chirp_point(ref.excitation, limits, ev.peak, ev.loop is not None)
+                      if family == "chirp" and ref.feasible else None)
         if seed_point is not None:  # the default chirp itself: the design is at least as good
             points.append(np.array(seed_point))
         for p in points:
