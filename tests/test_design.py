@@ -111,8 +111,8 @@ def test_short_case_designs_within_limits_beats_the_chirp_and_names_the_truth():
     """offset vs asymmetry, truth with an input offset: one draw, a small search."""
     case = make_design_case("offset_asymmetry", 0, 1, duration=5.0)
     limits = Limits(max_torque=0.2, max_speed=80.0, angle_range=1.0, duration=6.0)
-    result = run_case(case, limits, SearchOptions(starts=2, refine=0, draws=2, rehearse=1, rehearse_iter=4,
-                                                  families=("dwell_reverse", "multisine")), max_iter=8)
+    result = run_case(case, limits, SearchOptions(starts=2, refine=0, draws=2, rehearse=1, rehearse_iter=3,
+                                                  families=("dwell_reverse", "multisine")), max_iter=6)
     assert result["usage"] <= 1.0 and not result["truth_violations"]
     assert result["rehearsed"] > 0 and result["llr"] > 0  # the rehearsal and the decision both name the truth
     # The chirp at the largest amplitude within the limits; none may exist (the offset alone can
@@ -131,7 +131,7 @@ def test_design_cli_end_to_end_writes_a_runnable_experiment_and_decides(tmp_path
     rivals = ",".join(PAIRS["offset_asymmetry"][0])
     args = ["design", str(old), "--gear-ratio", "160", "--base", base, "--rivals", rivals,
             "--duration", "6", "--max-speed", "80", "--angle-range", "1", "--starts", "2", "--refine", "2",
-            "--draws", "2", "--max-iter", "8"]
+            "--draws", "2", "--max-iter", "8", "--rehearse", "1"]
     assert main([*args, "--out", str(out)]) == 0
     data = json.loads((out / "design.json").read_text())
     assert data["discrimination_nats"] > 0 and max(data["limit_usage"].values()) <= 1.0
@@ -155,7 +155,8 @@ def test_design_writes_the_experiment_the_simulator_reads_and_never_one_past_a_l
     from mjjoint.design.limits import violations
     from mjjoint.report.output import OutputDir
     a, b, limits, noise = pair_evaluator
-    d = design((a, b), noise, limits, SearchOptions(starts=2, refine=0, draws=0, families=("slow_reversal",)))
+    d = design((a, b), noise, limits, SearchOptions(starts=2, refine=0, draws=0, rehearse=0,
+                                                    families=("slow_reversal",)))
     assert all(not violations(tr, limits, "rival") for tr in d.best.traces)
     assert all(u <= 1.0 for f, p, s, u in d.evaluated if s == d.best.score and f == d.best.family)
     out = OutputDir(tmp_path / "design")
@@ -197,3 +198,47 @@ def test_benchmark_names_the_true_effect_in_nine_tenths_of_tied_draws_within_lim
     assert all(not r.get("truth_violations") and r.get("usage", 0) <= 1 for r in results)
     tied = [r for r in results if max(r["original_heldout"].values()) <= 1.05 * min(r["original_heldout"].values())]
     assert sum(r["correct"] for r in tied) >= 0.9 * len(tied)
+
+
+def test_the_designed_input_beats_a_same_length_default_chirp_on_the_criterion(pair_evaluator):
+    """Hand-set rivals, fixed noise: the search's best against the default chirp (30 -> 1 Hz) at
+    the largest amplitude that keeps both rivals within the same limits, same length."""
+    from mjjoint.design import design
+    a, b, limits, noise = pair_evaluator
+    d = design((a, b), noise, limits, SearchOptions(starts=2, refine=4, draws=0, rehearse=0,
+                                                    families=("chirp", "dwell_reverse")))
+    assert d.reference.feasible and len(d.reference.u) == len(d.best.u)
+    # The search starts from the default chirp too (a point of the chirp family): it can only gain.
+    assert any(f == "chirp" and s == pytest.approx(d.reference.score, rel=1e-6) for f, p, s, u in d.evaluated)
+    assert d.best.score > d.reference.score > 0 and d.best.usage <= 1.0
+
+
+def test_an_inputs_noise_floor_is_its_own_recordings_windowed_prediction_error(pair_evaluator):
+    """The floor grows with the motion: the rivals' own windowed prediction of a fast one-way
+    rotation errs more in q (start velocity from quantised angles) than of a small slow sine."""
+    from mjjoint.design.criterion import input_floor
+    a, b, limits, noise = pair_evaluator
+    ev = Evaluator((a, b), None, limits, SearchOptions(draws=0))
+    t = np.arange(limits.samples) / limits.rate
+    slow = ev.input("sine", (), None, 0.02 * np.sin(2 * np.pi * 0.5 * t))
+    fast = ev.input("one way", (), None, np.full(limits.samples, 0.09))
+    assert slow.floor == input_floor(ev.models, slow.traces, ev.window)  # deterministic
+    assert fast.floor["q"] > 10 * slow.floor["q"] > 0
+    assert all(v > 0 for v in slow.floor.values())
+
+
+def test_closed_loop_inputs_are_references_the_saturated_controller_tracks_within_the_limits(pair_evaluator,
+                                                                                              tmp_path):
+    from mjjoint.design import design
+    from mjjoint.design.export import write_experiment
+    from mjjoint.rehearse import Controller, ReferenceFile
+    a, b, limits, noise = pair_evaluator
+    d = design((a, b), noise, limits, SearchOptions(starts=2, refine=0, draws=0, rehearse=0,
+                                                    families=("slow_reversal",)), loop=Controller())
+    assert d.loop.u_max == limits.max_torque
+    for tr in d.best.traces:
+        assert np.max(np.abs(tr.u)) <= limits.max_torque * (1 + 1e-12)  # the command saturates
+        assert np.max(np.abs(tr.theta - tr.theta[0])) <= limits.angle_range
+    assert np.max(np.abs(d.best.u)) <= limits.angle_range and d.best.score > 0
+    ref = ReferenceFile(write_experiment(d, tmp_path / "experiment.csv"))
+    assert ref.side == "link" and np.array_equal(ref.sample(limits.rate, limits.duration), d.best.u)
