@@ -1,10 +1,12 @@
 """``mjjoint design``: experiments that separate two rival explanations, and the decision after.
 
 Fast properties of the parts (families within the torque limit by construction, antithetic
-parameter draws, the criterion's noise scaling and zero for identical rivals), the CLI's
-one-line errors, one short end-to-end case (a truth with an input offset, rivals fitted to a
-one-way recording that ties them, the designed experiment recorded from the truth and
-decided) and, marked slow, the CLI end to end.
+parameter draws, the criterion's noise scaling and zero for identical rivals, an input's noise
+floor growing with its motion, closed-loop references tracked under a saturated controller, the
+design beating the same-length default chirp on the criterion), the CLI's one-line errors, one
+short end-to-end case (a truth with an input offset, rivals fitted to a one-way recording that
+ties them, the designed experiment rehearsed, recorded from the truth and decided) and, marked
+slow, the CLI end to end and the acceptance benchmark.
 """
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """After the designed experiment: which rival does the new recording support?
 
-Both rivals are refitted (every parameter, from their fits to the original recording) to the
+Both rivals are refitted (every parameter, from their fits to the original recording, and
+from the effect's default values where that fit left the effect on a bound: ``refit``) to the
 new recording by windowed prediction error (``identify.fit``), and compared on the windows the
 fits did not see. Each signal's residuals are weighted by the design's noise floor (1 / sigma_s,
 ``criterion.prediction_floor``), not by the signal's spread as in a plain fit, so that fits and
@@ -51,6 +52,24 @@ class Decision:
                 "fits": {k: v.as_dict() for k, v in self.fits.items()}}
 
 
+def refit(predictor: Predictor, rival: Rival, max_iter: int, progress=None) -> FitResult:
+    """``rival`` fitted to ``predictor``'s recording from its old fit; where that fit left the
+    effect's own parameters on a bound (a recording that ties the rivals can fit the effect to
+    nothing: a play of 1e-7 rad, a hysteresis of 1e-6 rad, from which no gradient leads back),
+    also from the effect's default values, keeping the lower training cost. Without the second
+    start, a hysteresis truth's recording was explained better by refitted backlash."""
+    first = fit(predictor, rival.structure, max_iter=max_iter, progress=progress)
+    own = rival.drawn
+    x = rival.structure.vector(own)
+    lo, hi = rival.structure.bounds(own)
+    if not own or not np.any(np.isclose(x, lo, rtol=1e-6, atol=0) | np.isclose(x, hi, rtol=1e-6, atol=0)):
+        return first
+    params = {p.name: p for p in rival.structure.params}
+    start = rival.structure.with_values({n: params[n].initial for n in own})
+    second = fit(predictor, start, max_iter=max_iter, progress=progress)
+    return min((first, second), key=lambda r: r.cost_train)
+
+
 def decide(rivals: tuple[Rival, Rival], recording, floor: dict[str, float], window: WindowDesign = WindowDesign(),
            max_iter: int = 15, progress=None) -> Decision:
     """Fit both ``rivals`` to ``recording`` (a ``Recording``) with each predicted signal's
@@ -63,7 +82,7 @@ def decide(rivals: tuple[Rival, Rival], recording, floor: dict[str, float], wind
     predictor.scale = {s: float(floor[s]) for s in predictor.signals}
     fits, costs = {}, {}
     for r in rivals:
-        fits[r.effect] = fit(predictor, r.structure, max_iter=max_iter, progress=progress)
+        fits[r.effect] = refit(predictor, r, max_iter, progress)
         costs[r.effect] = window_costs(predictor, fits[r.effect].structure, predictor.test)
     a, b = (r.effect for r in rivals)
     winner, loser = (a, b) if costs[a].mean() <= costs[b].mean() else (b, a)
