@@ -119,6 +119,9 @@ def run_case(case: DesignCase, limits: Limits, options: SearchOptions, max_iter:
             "truth_violations": violations(truth_run, limits, "truth"), "truth_usage": usage(truth_run, limits),
             "loop": d.loop is not None,
             "rehearsed": None if d.best.rehearsal is None else d.best.rehearsal.score,
+            # the rehearsal whose recording came from the rival with the truth's effect
+            "rehearsed_truth_side": None if d.best.rehearsal is None else
+            d.best.rehearsal.evidence[[r.effect for r in rivals].index(case.truth_effect)],
             "llr": decision.llr if decision.winner == case.truth_effect else -decision.llr,
             "winner": decision.winner, "correct": decision.winner == case.truth_effect,
             "decisive": decision.decisive, "p": decision.p_value, "gap": decision.relative_gap,
