@@ -151,6 +151,25 @@ def test_design_cli_end_to_end_writes_a_runnable_experiment_and_decides(tmp_path
     assert decision["winner"] == "friction_asymmetry"
 
 
+@pytest.mark.slow
+def test_design_cli_closed_loop_exports_a_reference_the_loop_runs(tmp_path, capsys):
+    case = make_design_case("offset_asymmetry", 1, 2, duration=5.0)
+    old = tmp_path / "old.csv"
+    write_recording(old, record(case.truth, case.original, 1000.0))
+    out = tmp_path / "design"
+    args = ["design", str(old), "--gear-ratio", "160", "--base", ",".join(case.base.effects), "--rivals",
+            ",".join(PAIRS["offset_asymmetry"][0]), "--duration", "5", "--max-speed", "80", "--angle-range", "1",
+            "--starts", "1", "--refine", "0", "--draws", "0", "--rehearse", "1", "--max-iter", "5",
+            "--controller", "pd", "--out", str(out)]
+    assert main(args) == 0
+    data = json.loads((out / "design.json").read_text())
+    assert data["experiment"]["loop"] == "closed" and data["experiment"]["controller"]["u_max"] == 0.2
+    assert max(data["limit_usage"].values()) <= 1.0 and len(data["rehearsed"]) == 1
+    assert "--reference" in capsys.readouterr().out
+    assert main(["simulate", "--controller", "pd", "--limit", "0.2", "--reference", str(out / "experiment.csv"),
+                 "--duration", "5", "--csv", str(tmp_path / "new.csv")]) == 0
+
+
 def test_design_writes_the_experiment_the_simulator_reads_and_never_one_past_a_limit(pair_evaluator, tmp_path):
     from mjjoint.design import design
     from mjjoint.design.export import separated, write_design

@@ -38,7 +38,7 @@ examples:
   mjjoint design rec.csv --diagnosis out/diagnose --decide new.csv --out out/decide
 
 writes DIR/experiment.csv (t,u: 'mjjoint simulate --excitation file --file DIR/experiment.csv';
-with --controller t,theta_ref: 'mjjoint simulate --controller pd --reference DIR/experiment.csv'),
+with --controller t,theta_ref: 'mjjoint simulate --controller pd --limit MAX_TORQUE --reference ...'),
 design.json (the expected log-likelihood ratio D, the default chirp's, the rehearsed decisions,
 limits, noise floor, rivals), responses.png / responses.rrd (both rivals side by side, separation
 marked), index.html and run.json; with --decide: decision.json (winner, held-out costs, realised
@@ -213,7 +213,11 @@ def run(args: argparse.Namespace) -> int:
         write_design(folder, d, run_data)
     print(f"designed: {d.best.family}, {limits.duration:g} s; expected log-likelihood ratio "
           f"{d.best.score:.3g} nats (default chirp {d.reference.score:.3g})")
-    print(f"run it: mjjoint simulate --excitation file --file {out.path / 'experiment.csv'}")
+    if loop is None:
+        print(f"run it: mjjoint simulate --excitation file --file {out.path / 'experiment.csv'}")
+    else:
+        print(f"run it: mjjoint simulate --controller {loop.kind} --on {loop.on} --limit {limits.max_torque:g} "
+              f"--reference {out.path / 'experiment.csv'}")
     print(f"report: {out.path / 'index.html'}")
     return 0
 

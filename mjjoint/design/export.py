@@ -142,7 +142,8 @@ def page(data: dict, run: dict) -> str:
             + ("open loop: <code>experiment.csv</code> (t,u; run it: <code>mjjoint simulate --excitation file "
                "--file experiment.csv</code>).</p>\n" if exp["loop"] == "open" else
                "closed loop: <code>experiment.csv</code> (t,theta_ref: the reference for the recording's "
-               "controller, <code>mjjoint simulate --controller ... --reference experiment.csv</code>).</p>\n")
+               "controller, <code>mjjoint simulate --controller ... --limit MAX_TORQUE --reference "
+               "experiment.csv</code>).</p>\n")
             + 
             f"<p>Expected log-likelihood ratio between the rivals: <b>{data['discrimination_nats']:.4g} nats</b> "
             f"(the default chirp of the same length: {data['default_chirp']['discrimination_nats']:.4g}).</p>\n"
