@@ -5,24 +5,35 @@ For each rival pair of ``mjjoint.benchmark.design_cases`` and truths drawn on ei
 fitted with both rivals, the experiment is designed within the limits below, recorded from the
 truth (lab sensors, fresh noise) and decided. Reported per case: the original held-out costs
 of both rivals (the tie), the family chosen, D and the default chirp's D (the chirp at the
-largest amplitude within the limits, if any), the largest share of a limit the rivals' and the
-truth's runs use, the winner and its signed-rank p. Summary per pair: share named correctly,
-share where the design beats the chirp, limits ever exceeded.
+largest amplitude within the limits, if any), the largest share of a limit the truth's run
+uses, the discrimination predicted for the held-out windows (D scaled to them, and the
+rehearsed decisions' smaller log-likelihood ratio) against the realised one, the winner and its
+signed-rank p. Summary per pair: share named correctly (over the draws whose original recording
+tied: costs within TIE), share where the design beats the chirp, limits ever exceeded.
 
     python scripts/bench_design.py                          # 3 pairs x 2 sides x 3 seeds
     python scripts/bench_design.py --pairs offset_asymmetry --seeds 5 --json out.json
+    python scripts/bench_design.py --loop                   # references for a PD on the motor
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import time
 
 from mjjoint.benchmark.design_cases import PAIRS, make_design_case, run_case
 from mjjoint.design import Limits, SearchOptions
+from mjjoint.rehearse import Controller
 
 LIMITS = Limits(max_torque=0.2, max_speed=80.0, angle_range=1.0, duration=8.0)
+TIE = 0.05  # a draw counts where the worse rival's original held-out cost is within 5 % of the better's
+
+
+def tie(r: dict) -> float:
+    costs = list(r["original_heldout"].values())
+    return max(costs) / min(costs) - 1
 
 
 def main() -> None:
@@ -34,39 +45,51 @@ def main() -> None:
     ap.add_argument("--refine", type=int, default=6, help="Nelder-Mead evaluations")
     ap.add_argument("--draws", type=int, default=2, help="parameter draws per rival")
     ap.add_argument("--max-iter", type=int, default=10, help="LM iterations per fit")
+    ap.add_argument("--rehearse", type=int, default=2, help="best inputs whose decision is rehearsed")
+    ap.add_argument("--loop", action="store_true", help="closed loop: design references for a PD on the motor")
+    ap.add_argument("--duration", type=float, default=LIMITS.duration, help="original and designed record [s]")
     ap.add_argument("--json", help="write every case's result here")
     args = ap.parse_args()
-    options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws)
-    print(f"limits: {LIMITS}; search: {options}; load average {os.getloadavg()[0]:.1f}")
-    header = ("pair", "truth", "seed", "tie", "family", "D", "D chirp", "usage", "truth ok", "winner", "p")
+    options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws, rehearse=args.rehearse)
+    loop = Controller() if args.loop else None
+    limits = dataclasses.replace(LIMITS, duration=args.duration)
+    print(f"limits: {limits}; search: {options}; loop: {loop}; load average {os.getloadavg()[0]:.1f}")
+    header = ("pair", "truth", "seed", "tie", "family", "D", "D chirp", "truth usage", "D held-out",
+              "rehearsed", "realised", "winner", "p")
     print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
     results = []
     start = time.perf_counter()
     for pair in args.pairs.split(","):
         for seed in range(args.first_seed, args.first_seed + args.seeds):
             for side in (0, 1):
-                r = run_case(make_design_case(pair, side, seed), LIMITS, options, max_iter=args.max_iter)
+                r = run_case(make_design_case(pair, side, seed, args.duration), limits, options,
+                             max_iter=args.max_iter, loop=loop)
                 results.append(r)
-                costs = list(r["original_heldout"].values())
                 if r["family"] is None:
-                    print(f"| {pair} | {r['truth']} | {seed} | {max(costs) / min(costs) - 1:.1%} | none within "
-                          f"the limits | | | | | (failed) | |", flush=True)
+                    print(f"| {pair} | {r['truth']} | {seed} | {tie(r):.1%} | none within "
+                          f"the limits | | | | | | | (failed) | |", flush=True)
                     continue
                 chirp = f"{r['D_chirp']:.3g}" + ("" if r["chirp_feasible"] else " (over limits)")
-                print(f"| {pair} | {r['truth']} | {seed} | {max(costs) / min(costs) - 1:.1%} | {r['family']} | "
-                      f"{r['D']:.3g} | {chirp} | {r['usage']:.2f} | {'yes' if not r['truth_violations'] else 'NO'} | "
+                rehearsed = "" if r["rehearsed"] is None else f"{r['rehearsed']:.3g}"
+                print(f"| {pair} | {r['truth']} | {seed} | {tie(r):.1%} | {r['family']} | "
+                      f"{r['D']:.3g} | {chirp} | "
+                      f"{r['truth_usage']:.2f}{'' if not r['truth_violations'] else ' (NO)'} | "
+                      f"{r['D_heldout']:.3g} | {rehearsed} | {r['llr']:.3g} | "
                       f"{r['winner']}{'' if r['correct'] else ' (wrong)'} | {r['p']:.2g} |", flush=True)
     print(f"\n{time.perf_counter() - start:.0f} s in all")
-    for pair in args.pairs.split(","):
-        rs = [r for r in results if r["pair"] == pair]
-        designed = [r for r in rs if r["family"] is not None]
+    for pair in [*args.pairs.split(","), None]:
+        every = [r for r in results if pair is None or r["pair"] == pair]
+        rs = [r for r in every if tie(r) <= TIE]
+        designed = [r for r in every if r["family"] is not None]
         feasible = [r for r in designed if r["chirp_feasible"]]
-        print(f"{pair}: named correctly {sum(r['correct'] for r in rs)}/{len(rs)}, decisive "
+        print(f"{pair or 'all pairs'}: of {len(rs)} tied draws ({len(every) - len(rs)} did not tie) named correctly "
+              f"{sum(r['correct'] for r in rs)}/{len(rs)}, decisive "
               f"{sum(r['correct'] and r['decisive'] for r in rs)}/{len(rs)}; design beats the chirp "
               f"{sum(r['D'] > r['D_chirp'] for r in feasible)}/{len(feasible)} where the chirp fits the limits "
               f"({len(designed) - len(feasible)} where it cannot); no design within the limits "
-              f"{len(rs) - len(designed)}/{len(rs)}; limits exceeded "
-              f"{sum(r['usage'] > 1 or bool(r['truth_violations']) for r in designed)}/{len(designed)}")
+              f"{len(every) - len(designed)}/{len(every)}; limits exceeded "
+              f"{sum(r['usage'] > 1 or bool(r['truth_violations']) for r in designed)}/{len(designed)}; "
+              f"all draws named correctly {sum(r['correct'] for r in every)}/{len(every)}")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as f:
             json.dump(results, f, indent=1)

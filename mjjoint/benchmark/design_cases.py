@@ -22,8 +22,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..design import Limits, Rival, SearchOptions, decide, design, prediction_floor
-from ..design.record import record
+from ..design import Limits, Rival, SearchOptions, decide, design
+from ..design.limits import usage, violations
+from ..design.record import logged, record
+from ..design.response import RivalModel
+from ..rehearse import Controller
 from ..identify.fit import fit
 from ..identify.structure import Structure
 from ..identify.windows import Measured, Predictor
@@ -84,8 +87,10 @@ def make_design_case(pair: str, side: int, seed: int, duration: float = 8.0) -> 
     return DesignCase(pair, effect, seed, truth, base, programme(t, r))
 
 
-def run_case(case: DesignCase, limits: Limits, options: SearchOptions, max_iter: int = 15) -> dict:
-    """Fit both rivals to the original recording, design, record the design from the truth, decide."""
+def run_case(case: DesignCase, limits: Limits, options: SearchOptions, max_iter: int = 15,
+             loop: Controller | None = None) -> dict:
+    """Fit both rivals to the original recording, design (open loop, or with ``loop`` a reference
+    for that controller), record the design from the truth, decide."""
     start = time.perf_counter()
     sensors = Sensors(seed=case.seed)
     old = record(case.truth, case.original, RATE, sensors)
@@ -93,23 +98,31 @@ def run_case(case: DesignCase, limits: Limits, options: SearchOptions, max_iter:
     effects = PAIRS[case.pair][0]
     fits = [fit(predictor, case.base.with_effect(e), max_iter=max_iter) for e in effects]
     rivals = tuple(Rival(e, f.structure, f.intervals) for e, f in zip(effects, fits))
-    floor = prediction_floor(predictor, [r.structure for r in rivals])
     found = {"pair": case.pair, "truth": case.truth_effect, "seed": case.seed,
              "original_heldout": {e: f.cost_test for e, f in zip(effects, fits)}}
     try:
-        d = design(rivals, floor, limits, options)
+        d = design(rivals, None, limits, options, loop=loop)
     except ValueError as exc:  # no input within the limits: a failed case, not a crash
         return {**found, "family": None, "error": str(exc), "correct": False, "decisive": False,
                 "seconds": time.perf_counter() - start}
-    new = record(case.truth, d.best.u, RATE, Sensors(seed=case.seed + 100))
-    decision = decide(rivals, new, floor, max_iter=max_iter)
+    truth_model = RivalModel(Rival(case.truth_effect, case.truth), RATE, 0, loop=d.loop)
+    truth_run = truth_model.run(d.best.u)
+    new = logged(truth_run, Sensors(seed=case.seed + 100))
+    decision = decide(rivals, new, d.noise, max_iter=max_iter)
+    # D counts every window of the run, the decision only the held-out ones.
+    held = Predictor(Measured.from_recording(new, case.truth.gear_ratio))
+    share = len(held.test) / len(held.starts)
     # The limits on the truth's own run of the designed input (the rivals' were checked in design).
-    from ..design.limits import violations
-    from ..sim import Simulator
-    truth_run = Simulator(case.truth.compile(), sample_rate=RATE).run(d.best.u)
-    return {**found, "family": d.best.family, "D": d.best.score, "D_chirp": d.reference.score,
+    return {**found, "family": d.best.family, "D": d.best.score, "D_heldout": share * d.best.score,
+            "D_chirp": d.reference.score,
             "chirp_usage": d.reference.usage, "chirp_feasible": d.reference.feasible, "usage": d.best.usage,
-            "truth_violations": violations(truth_run, limits, "truth"),
+            "truth_violations": violations(truth_run, limits, "truth"), "truth_usage": usage(truth_run, limits),
+            "loop": d.loop is not None,
+            "rehearsed": None if d.best.rehearsal is None else d.best.rehearsal.score,
+            # the rehearsal whose recording came from the rival with the truth's effect
+            "rehearsed_truth_side": None if d.best.rehearsal is None else
+            d.best.rehearsal.evidence[[r.effect for r in rivals].index(case.truth_effect)],
+            "llr": decision.llr if decision.winner == case.truth_effect else -decision.llr,
             "winner": decision.winner, "correct": decision.winner == case.truth_effect,
             "decisive": decision.decisive, "p": decision.p_value, "gap": decision.relative_gap,
             "seconds": time.perf_counter() - start}

@@ -4,8 +4,10 @@ The rivals are the base model plus either effect (``--rivals A,B`` over ``--base
 or the named effect and its ``indistinguishable_from`` rival of a diagnosis, ``--diagnosis
 DIR``), each fitted to the recording REC, with 95 % intervals. The search
 (``design.optimise``) returns the input, within the limits, that maximises the expected
-log-likelihood ratio between them. ``--decide NEW_REC``: after running it, fit both rivals to
-the new recording and name the one it supports (``design.decide``).
+log-likelihood ratio between them, the best few checked by rehearsing the decision; with
+``--controller``, a link-angle reference for that controller (``design.loop``).
+``--decide NEW_REC``: after running it, fit both rivals to the new recording and name the one
+it supports (``design.decide``).
 """
 from __future__ import annotations
 
@@ -19,6 +21,8 @@ from ..assets import ArmSpec
 from ..identify.effects import EFFECTS
 from ..identify.structure import Structure
 from ..design.limits import PREDICTED
+from ..rehearse.controller import KINDS, SIDES
+from .closed_loop import controller_from_args
 from .errors import CliError
 from ..recordings import read_recording
 from .options import Problem, add_problem_options, effect_names, inputs_from_args, prepare, run_info
@@ -30,13 +34,15 @@ examples:
   mjjoint design rec.csv --gear-ratio 160 --base coulomb_friction,viscous_friction,gravity,linear_stiffness \\
       --rivals input_offset,friction_asymmetry --max-torque 0.2 --max-speed 60 --angle-range 0.8 --duration 5
   mjjoint design rec.csv --diagnosis out/diagnose --signals q,theta --out out/design
+  mjjoint design rec.csv --diagnosis out/diagnose --controller pd --out out/design   # a reference
   mjjoint design rec.csv --diagnosis out/diagnose --decide new.csv --out out/decide
 
-writes DIR/experiment.csv (t,u: 'mjjoint simulate --excitation file --file DIR/experiment.csv'),
-design.json (the expected log-likelihood ratio D, the default chirp's, limits, noise floor,
-rivals), responses.png / responses.rrd (both rivals side by side, separation marked),
-index.html and run.json; with --decide: decision.json (winner, held-out costs, signed-rank p)
-and index.html. DIR appears only when complete.
+writes DIR/experiment.csv (t,u: 'mjjoint simulate --excitation file --file DIR/experiment.csv';
+with --controller t,theta_ref: 'mjjoint simulate --controller pd --limit MAX_TORQUE --reference ...'),
+design.json (the expected log-likelihood ratio D, the default chirp's, the rehearsed decisions,
+limits, noise floor, rivals), responses.png / responses.rrd (both rivals side by side, separation
+marked), index.html and run.json; with --decide: decision.json (winner, held-out costs, realised
+log-likelihood ratio, signed-rank p) and index.html. DIR appears only when complete.
 """
 
 
@@ -96,8 +102,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     g.add_argument("--signals", type=signal_list, default=lim.signals, metavar="LIST",
                    help="signals the new recording will hold (default q,theta,tau)")
     g.add_argument("--noise", type=noise_map, metavar="MAP",
-                   help="noise std per signal, e.g. q=1e-4,theta=2e-6,tau=0.05 (default: the rivals' windowed "
-                        "prediction error on REC)")
+                   help="noise std per signal, e.g. q=1e-4,theta=2e-6,tau=0.05 (default: each input's own, the "
+                        "rivals' windowed prediction error on a simulated recording of it)")
+    c = p.add_argument_group("closed loop (design a link-angle reference for the recording's controller)")
+    c.add_argument("--controller", choices=KINDS, help="the position controller the experiment runs under")
+    c.add_argument("--on", choices=SIDES, help="angle the controller closes on (default motor)")
+    c.add_argument("--gains", metavar="LIST", help="kp=..,kd=..,ki=.. (default: mjjoint simulate's for the side)")
     s = p.add_argument_group("search")
     s.add_argument("--starts", type=int, default=opt.starts, metavar="K",
                    help=f"quasi-random inputs tried per family (default {opt.starts})")
@@ -105,6 +115,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help=f"Nelder-Mead evaluations from the best (default {opt.refine})")
     s.add_argument("--draws", type=int, default=opt.draws, metavar="K",
                    help=f"parameter draws per rival for its prediction spread (default {opt.draws})")
+    s.add_argument("--rehearse", type=int, default=opt.rehearse, metavar="K",
+                   help=f"best inputs whose decision is rehearsed on simulated recordings (default {opt.rehearse})")
     s.add_argument("--max-iter", type=int, default=15, metavar="K", help="LM iterations of each fit (default 15)")
     p.add_argument("--decide", type=Path, metavar="NEW_REC",
                    help="the recording of the designed experiment: fit both rivals to it and name the winner")
@@ -135,13 +147,20 @@ def limits_from_args(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..design.criterion import predicted_noise, prediction_floor
+    from ..design.criterion import predicted_noise
     from ..design.optimise import SearchOptions
     from ..design.rivals import Rival
     from ..identify.fit import fit
 
     limits = limits_from_args(args)
-    options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws)
+    try:
+        options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws, rehearse=args.rehearse)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    if args.controller is None and (args.on or args.gains):
+        raise CliError(f"--{'on' if args.on else 'gains'} needs --controller pd|pid")
+    loop = None if args.controller is None else controller_from_args(
+        argparse.Namespace(controller=args.controller, on=args.on, gains=args.gains, limit=None))
     if args.max_iter < 1:
         raise CliError(f"--max-iter {args.max_iter} must be at least 1")
     out, problem = prepare(args)
@@ -181,23 +200,42 @@ def run(args: argparse.Namespace) -> int:
         rivals.append(Rival(effect, result.structure, result.intervals))
     rivals = tuple(rivals)
     run_data = run_info("design", args, problem)
-    if args.noise is not None:
-        noise = predicted_noise(args.noise, base.gear_ratio)
-    else:
-        noise = prediction_floor(problem.predictor, [r.structure for r in rivals])
+    noise = None if args.noise is None else predicted_noise(args.noise, base.gear_ratio)
     if new is not None:
+        if noise is None:  # the new recording's floor, as its design scored it (criterion.input_floor)
+            noise = recording_floor(rivals, new, problem.predictor.design)
         return _decide(args, out, rivals, new, noise, problem, run_data, start)
     from ..design.export import write_design
     from ..design.optimise import design
-    d = design(rivals, noise, limits, options)
+    d = design(rivals, noise, limits, options, window=problem.predictor.design, loop=loop)
     run_data["seconds"] = round(time.perf_counter() - start, 3)
     with out.staged() as folder:
         write_design(folder, d, run_data)
     print(f"designed: {d.best.family}, {limits.duration:g} s; expected log-likelihood ratio "
           f"{d.best.score:.3g} nats (default chirp {d.reference.score:.3g})")
-    print(f"run it: mjjoint simulate --excitation file --file {out.path / 'experiment.csv'}")
+    if loop is None:
+        print(f"run it: mjjoint simulate --excitation file --file {out.path / 'experiment.csv'}")
+    else:
+        print(f"run it: mjjoint simulate --controller {loop.kind} --on {loop.on} --limit {limits.max_torque:g} "
+              f"--reference {out.path / 'experiment.csv'}")
     print(f"report: {out.path / 'index.html'}")
     return 0
+
+
+def recording_floor(rivals, new, window) -> dict[str, float]:
+    """The noise floor of a new recording's input: the rivals run under its torque, as the
+    design scored the input (``criterion.input_floor``)."""
+    import numpy as np
+
+    from ..design.criterion import input_floor
+    from ..design.response import Diverged, RivalModel
+    rate = (len(new.t) - 1) / float(new.t[-1] - new.t[0])
+    models = [RivalModel(r, rate, 0) for r in rivals]
+    try:
+        traces = [m.run(np.asarray(new.u, float)) for m in models]
+    except Diverged as exc:
+        raise CliError(f"--decide: a rival diverges under the new recording's torque ({exc}); give --noise") from None
+    return input_floor(models, traces, window)
 
 
 def _decide(args, out, rivals, new, noise, problem, run_data, start) -> int:

@@ -22,25 +22,47 @@ parameters absorbs: on the offset/asymmetry pair (truth asymmetric) the design p
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from ..identify.windows import Predictor
+from ..identify.windows import Measured, Predictor, WindowDesign
+from ..rehearse.sensors import Sensors
 from .limits import PREDICTED
+from .record import logged
 from .response import Windowed
 
 # Singular values below RCOND of the largest are directions the refit cannot resolve.
 RCOND = 1e-8
 
 
-def prediction_floor(predictor: Predictor, structures) -> dict[str, float]:
+def prediction_floor(predictor: Predictor, structures, windows=None) -> dict[str, float]:
     """The noise floor of each predicted signal (q, delta, tau) on this recording: the rms error
-    of the better of ``structures`` over the held-out windows. Not the sensors' noise alone: a
-    window's prediction also carries its start state's error (the velocity is a derivative of
-    quantised angles) through the window, and that is what the decision's costs are made of."""
-    test, cols = predictor.test, predictor.cols
+    of the better of ``structures`` over ``windows`` (default the held-out ones). Not the
+    sensors' noise alone: a window's prediction also carries its start state's error (the
+    velocity is a derivative of quantised angles) through the window, and that is what the
+    decision's costs are made of."""
+    test, cols = (predictor.test if windows is None else np.asarray(windows)), predictor.cols
     preds = predictor.predict(list(structures), test)
     return {s: float(min(np.sqrt(np.nanmean((p[s][:, cols] - predictor.meas[s][test][:, cols]) ** 2))
                          for p in preds)) for s in predictor.signals}
+
+
+def input_floor(models, traces, window: WindowDesign = WindowDesign(),
+                sensors: Sensors = Sensors()) -> dict[str, float]:
+    """The noise floor of the recording a candidate input would give: each rival's run of it
+    (``traces``) logged by the lab's sensors and predicted by that rival itself in every window,
+    the rms error per signal; the two rivals' combined as the root of their mean square. The
+    floor depends on the motion: the same joint's windowed q prediction errs by ~1e-4 rad under
+    a slow sine and by ~0.05 rad in fast one-way rotation (its start velocity's error grows
+    with speed), so a floor measured on the original recording mis-weighs a different input
+    (docs/design-experiments.md)."""
+    floors = []
+    for k, (m, tr) in enumerate(zip(models, traces)):
+        rec = logged(tr, replace(sensors, seed=sensors.seed + k))
+        predictor = Predictor(Measured.from_recording(rec, tr.gear_ratio), window, nthread=1)
+        floors.append(prediction_floor(predictor, [m.rival.structure], np.arange(len(predictor.starts))))
+    return {s: float(np.sqrt(np.mean([f[s] ** 2 for f in floors]))) for s in floors[0]}
 
 
 def predicted_noise(noise: dict[str, float], gear_ratio: float) -> dict[str, float]:

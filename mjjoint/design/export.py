@@ -1,7 +1,8 @@
 """Write a designed experiment: the programme to run, and both rivals' predicted responses.
 
 Into one folder (written whole or not at all by the caller, ``report.output.OutputDir``):
-``experiment.csv`` (t,u: ``mjjoint simulate --excitation file --file experiment.csv`` runs it),
+``experiment.csv`` (t,u: ``mjjoint simulate --excitation file --file experiment.csv`` runs it;
+closed loop: t,theta_ref, the reference ``mjjoint simulate --controller ... --reference`` tracks),
 ``design.json`` (the experiment, D against the default chirp's, limits used, noise floor, the
 rivals and every input evaluated), ``responses.png`` and ``responses.rrd`` (the rivals side by
 side per signal, with where their difference exceeds the combined spread marked) and
@@ -35,8 +36,11 @@ def summary(d: Design) -> dict:
     return {"experiment": {"family": best.family, "point": list(best.point), "duration": d.limits.duration,
                            "rate": d.limits.rate, "excitation": {"kind": type(exc).__name__,
                                                                  **dataclasses.asdict(exc)},
-                           "file": "experiment.csv", "loop": "open"},
+                           "file": "experiment.csv", "loop": "open" if d.loop is None else "closed",
+                           **({} if d.loop is None else {"controller": d.loop.describe()})},
             "discrimination_nats": best.score,
+            "rehearsed": [{"family": c.family, "point": list(c.point), "discrimination_nats": c.score,
+                           **c.rehearsal.as_dict()} for c in d.rehearsed],
             "default_chirp": {"discrimination_nats": ref.score, "limit_usage": ref.usage,
                               "excitation": dataclasses.asdict(ref.excitation)},
             "limit_usage": {r.effect: usage(tr, d.limits) for r, tr in zip(d.rivals, best.traces)},
@@ -68,8 +72,15 @@ def plot_responses(d: Design, path: Path) -> Path:
     fig = Figure(figsize=(10, 2.4 * (len(d.limits.signals) + 1)), layout="constrained")
     axes = fig.subplots(len(d.limits.signals) + 1, 1, sharex=True)
     t = best.traces[0].t
-    axes[0].plot(t, best.u, color="0.3", lw=0.8)
-    axes[0].set(ylabel="u [N m]", title=f"designed input: {best.family}, D = {best.score:.3g} nats "
+    if d.loop is None:
+        axes[0].plot(t, best.u, color="0.3", lw=0.8)
+    else:  # the reference, and each rival's command in the loop
+        axes[0].plot(t, best.u, color="0.3", lw=0.8, label="theta_ref [rad]")
+        for k, (rival, tr) in enumerate(zip(d.rivals, best.traces)):
+            axes[0].plot(t, tr.u, color=COLORS[k], lw=0.8, label=f"u, {rival.effect}")
+        axes[0].legend(loc="upper right", fontsize="small")
+    axes[0].set(ylabel="u [N m]" if d.loop is None else "theta_ref, u",
+                title=f"designed input: {best.family}, D = {best.score:.3g} nats "
                                         f"(default chirp {d.reference.score:.3g})")
     for ax, s in zip(axes[1:], d.limits.signals):
         for k, (rival, tr) in enumerate(zip(d.rivals, best.traces)):
@@ -97,7 +108,7 @@ def write_rrd(d: Design, path: Path) -> Path:
     rec.send_recording_name(f"design {' vs '.join(r.effect for r in d.rivals)}")
     time = [sim_time(best.traces[0].t)]
     try:
-        series = {"input/u": best.u}
+        series = {"input/u" if d.loop is None else "input/theta_ref": best.u}
         for r, tr in zip(d.rivals, best.traces):
             series.update({f"{r.effect}/{s}": getattr(tr, s) for s in d.limits.signals})
         series.update({f"separation/{s}": sep[s].astype(float) for s in d.limits.signals})
@@ -110,10 +121,11 @@ def write_rrd(d: Design, path: Path) -> Path:
 
 
 def write_experiment(d: Design, path: Path) -> Path:
-    """t,u at the design rate: the file ``mjjoint simulate --excitation file`` reads."""
+    """t,u at the design rate: the file ``mjjoint simulate --excitation file`` reads; closed
+    loop: t,theta_ref, a reference file (``rehearse.ReferenceFile``)."""
     t = np.arange(len(d.best.u)) / d.limits.rate
     with path.open("w", encoding="utf-8", newline="") as f:  # repr: reads back to the same float
-        f.write("t,u\n")
+        f.write("t,u\n" if d.loop is None else "t,theta_ref\n")
         f.writelines(f"{a!r},{b!r}\n" for a, b in zip(t.tolist(), d.best.u.tolist()))
     return path
 
@@ -126,9 +138,13 @@ def page(data: dict, run: dict) -> str:
     return ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
             f"<title>design: {escape(rivals)}</title>\n</head>\n<body>\n"
             f"<h1>Experiment separating {escape(rivals)}</h1>\n"
-            f"<p>Input family <b>{escape(exp['family'])}</b>, {exp['duration']:g} s at {exp['rate']:g} Hz, open loop: "
-            f"<code>experiment.csv</code> (run it: <code>mjjoint simulate --excitation file --file experiment.csv"
-            f"</code>).</p>\n"
+            f"<p>Input family <b>{escape(exp['family'])}</b>, {exp['duration']:g} s at {exp['rate']:g} Hz, "
+            + ("open loop: <code>experiment.csv</code> (t,u; run it: <code>mjjoint simulate --excitation file "
+               "--file experiment.csv</code>).</p>\n" if exp["loop"] == "open" else
+               "closed loop: <code>experiment.csv</code> (t,theta_ref: the reference for the recording's "
+               "controller, <code>mjjoint simulate --controller ... --limit MAX_TORQUE --reference "
+               "experiment.csv</code>).</p>\n")
+            + 
             f"<p>Expected log-likelihood ratio between the rivals: <b>{data['discrimination_nats']:.4g} nats</b> "
             f"(the default chirp of the same length: {data['default_chirp']['discrimination_nats']:.4g}).</p>\n"
             f"<table><tr><th>rival</th><th>largest share of a limit used</th></tr>{rows}</table>\n"

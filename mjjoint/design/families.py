@@ -1,11 +1,15 @@
 """Input families an experiment is searched in, each a map from [0, 1]^k to a torque programme.
 
-Every family scales its programme so that |u| <= ``Limits.max_torque`` by construction; the
-coordinates are shares of the limits (amplitude, offset) and log-spaced positions in the
-frequency or time range the record length and rate allow, so one optimiser serves all.
+Every family scales its programme so that its peak stays within ``peak`` by construction:
+``Limits.max_torque`` for an open-loop torque, ``Limits.angle_range`` for a closed loop's
+link-angle reference (``design.loop``). The coordinates are shares of the peak (amplitude,
+offset) and log-spaced positions in the frequency or time range the record length and rate
+allow, so one optimiser serves all.
 
 * ``multisine``: amplitude, lowest line, band width (``excitation.Multisine``, 16 lines).
-* ``chirp``: amplitude, start and end frequency of a log sweep (``excitation.Chirp``).
+* ``chirp``: amplitude, start and end frequency of a linear sweep (``excitation.Chirp``, the
+  shipped default's kind: the default chirp is a point of this family, ``chirp_point``, so
+  that the search can start from it).
 * ``dwell_reverse``: a constant offset plus a square wave that dwells at each level and
   reverses: held deflections of either sign, where play and hysteresis differ most.
 * ``slow_reversal``: a constant offset plus a slow triangle: quasi-static reversals.
@@ -21,7 +25,7 @@ from ..excitation import Chirp, Multisine, sample_times
 from ..params import check
 from .limits import Limits
 
-MIN_SHARE = 0.1      # smallest amplitude share of max_torque a family uses
+MIN_SHARE = 0.02     # smallest amplitude share of the peak a family uses
 MULTISINE_LINES = 16
 DWELL_RANGE = (0.05, 2.0)      # [s] time at each level of dwell_reverse
 REVERSAL_RANGE = (0.05, 3.0)   # [Hz] triangle frequency of slow_reversal
@@ -70,35 +74,53 @@ def _amplitude(share: float, room: float) -> float:
     return room * (MIN_SHARE + (1 - MIN_SHARE) * float(np.clip(share, 0, 1)))
 
 
-def _offset(share: float, limits: Limits) -> float:
-    return 0.9 * limits.max_torque * (2 * float(np.clip(share, 0, 1)) - 1)
+def _log_amplitude(share: float, room: float) -> float:
+    return room * _log_between(share, MIN_SHARE, 1.0)
 
 
-def multisine(p, limits: Limits) -> Multisine:
+def _offset(share: float, peak: float) -> float:
+    return 0.9 * peak * (2 * float(np.clip(share, 0, 1)) - 1)
+
+
+def multisine(p, limits: Limits, peak: float, amplitude=_amplitude) -> Multisine:
     lo, hi = band(limits)
     f_min = _log_between(p[1], lo, hi / 2)
     f_max = _log_between(p[2], f_min * 1.5, hi)
     lines = math.floor(f_max * limits.duration + 1e-9) - math.ceil(f_min * limits.duration - 1e-9) + 1
-    return Multisine(amplitude=_amplitude(p[0], limits.max_torque), f_min=f_min, f_max=f_max,
+    return Multisine(amplitude=amplitude(p[0], peak), f_min=f_min, f_max=f_max,
                      n=max(1, min(MULTISINE_LINES, lines)))
 
 
-def chirp(p, limits: Limits) -> Chirp:
+def chirp(p, limits: Limits, peak: float, amplitude=_amplitude) -> Chirp:
     lo, hi = band(limits)
-    return Chirp(amplitude=_amplitude(p[0], limits.max_torque), f_start=_log_between(p[1], lo, hi),
-                 f_end=_log_between(p[2], lo, hi), sweep="log")
+    return Chirp(amplitude=amplitude(p[0], peak), f_start=_log_between(p[1], lo, hi),
+                 f_end=_log_between(p[2], lo, hi), sweep="linear")
 
 
-def dwell_reverse(p, limits: Limits) -> OffsetWave:
-    offset = _offset(p[1], limits)
-    return OffsetWave(offset=offset, amplitude=_amplitude(p[0], limits.max_torque - abs(offset)),
+def chirp_point(c: Chirp, limits: Limits, peak: float,
+                log_amplitude: bool = False) -> tuple[float, float, float] | None:
+    """The ``chirp`` family's coordinates of the linear chirp ``c``, None where it lies outside
+    the family (amplitude or frequencies out of range)."""
+    lo, hi = band(limits)
+    share = c.amplitude / peak
+    point = ((math.log(share / MIN_SHARE) / math.log(1 / MIN_SHARE) if log_amplitude and share > 0
+              else (share - MIN_SHARE) / (1 - MIN_SHARE)),
+             *(math.log(f / lo) / math.log(hi / lo) for f in (c.f_start, c.f_end)))
+    if c.sweep != "linear" or not all(-1e-12 <= v <= 1 + 1e-12 for v in point):
+        return None
+    return tuple(float(np.clip(v, 0.0, 1.0)) for v in point)
+
+
+def dwell_reverse(p, limits: Limits, peak: float, amplitude=_amplitude) -> OffsetWave:
+    offset = _offset(p[1], peak)
+    return OffsetWave(offset=offset, amplitude=amplitude(p[0], peak - abs(offset)),
                       period=2 * _log_between(p[2], *DWELL_RANGE), wave="square")
 
 
-def slow_reversal(p, limits: Limits) -> OffsetWave:
-    offset = _offset(p[1], limits)
+def slow_reversal(p, limits: Limits, peak: float, amplitude=_amplitude) -> OffsetWave:
+    offset = _offset(p[1], peak)
     f_lo = max(REVERSAL_RANGE[0], 1.0 / limits.duration)
-    return OffsetWave(offset=offset, amplitude=_amplitude(p[0], limits.max_torque - abs(offset)),
+    return OffsetWave(offset=offset, amplitude=amplitude(p[0], peak - abs(offset)),
                       period=1.0 / _log_between(p[2], f_lo, max(REVERSAL_RANGE[1], f_lo)), wave="triangle")
 
 
@@ -107,9 +129,13 @@ FAMILIES = {"multisine": (3, multisine), "chirp": (3, chirp), "dwell_reverse": (
             "slow_reversal": (3, slow_reversal)}
 
 
-def programme(family: str, p, limits: Limits):
-    """The excitation of ``family`` at coordinates ``p``, and its torque samples."""
+def programme(family: str, p, limits: Limits, peak: float | None = None, log_amplitude: bool = False):
+    """The excitation of ``family`` at coordinates ``p``, and its samples, within ``peak``
+    (default the torque limit); ``log_amplitude``: the amplitude share log-spaced from MIN_SHARE
+    to 1 (a reference: its fast members meet the speed limit only at small amplitudes)."""
     if family not in FAMILIES:
         raise ValueError(f"family={family!r} is not an input family (allowed: {', '.join(FAMILIES)})")
-    excitation = FAMILIES[family][1](np.asarray(p, float), limits)
+    peak = limits.max_torque if peak is None else peak
+    excitation = FAMILIES[family][1](np.asarray(p, float), limits, peak,
+                                     _log_amplitude if log_amplitude else _amplitude)
     return excitation, excitation.sample(limits.rate, limits.duration)

@@ -20,7 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..identify.windows import Measured, Predictor, WindowDesign
+from ..rehearse import Controller
 from ..sim import Simulator, Trace
+from .loop import loop_trace
 from .rivals import Rival
 
 
@@ -36,24 +38,44 @@ class Diverged(ValueError):
 
 
 class RivalModel:
-    """A rival's compiled fitted model at ``rate`` and ``ndraws`` parameter draws about it."""
+    """A rival's compiled fitted model at ``rate`` and ``ndraws`` parameter draws about it,
+    run open loop (a torque programme) or, with ``loop`` (a controller), tracking a link-angle
+    reference (``design.loop``)."""
 
-    def __init__(self, rival: Rival, rate: float, ndraws: int = 4, seed: int = 0):
-        self.rival = rival
+    def __init__(self, rival: Rival, rate: float, ndraws: int = 4, seed: int = 0, loop: Controller | None = None):
+        self.rival, self.loop, self.rate = rival, loop, rate
         self.fitted = Simulator(rival.structure.compile(), sample_rate=rate)
-        self.draws = []
+        self.draws, self._draw_sims = [], []
         for s in rival.draws(ndraws, seed):
             try:
-                s.compile()
+                model = s.compile()
             except ValueError:  # unstable at the timestep: no prediction to spread
                 continue
             self.draws.append(s)
+            self._draw_sims.append(Simulator(model, sample_rate=rate))
 
-    def run(self, u: np.ndarray) -> Trace:
+    def _run(self, sim: Simulator, x: np.ndarray) -> Trace:
+        if self.loop is None:
+            return sim.run(x)
+        return loop_trace(sim.model, x, self.loop, self.rate, self.rival.structure.gear_ratio)
+
+    def run(self, x: np.ndarray) -> Trace:
+        """The fitted model's run under ``x``: the torque, or the reference in closed loop."""
         try:
-            return self.fitted.run(u)
+            return self._run(self.fitted, x)
         except ValueError as exc:
             raise Diverged(f"{self.rival.effect}: {exc}") from None
+
+    def draw_runs(self, x: np.ndarray) -> list[Trace]:
+        """The parameter draws' runs under ``x`` (for the limits: the joint may be any of them);
+        a draw whose run diverges is left out, as one that cannot be compiled is."""
+        runs = []
+        for sim in self._draw_sims:
+            try:
+                runs.append(self._run(sim, x))
+            except ValueError:
+                continue
+        return runs
 
 
 @dataclass
