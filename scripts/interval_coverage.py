@@ -51,6 +51,10 @@ def main(argv=None) -> int:
     ap.add_argument("--fit-iter", type=int, default=30)
     ap.add_argument("--effects", default=",".join(EFFECTS_SCORED))
     args = ap.parse_args(argv)
+    unknown = [e for e in args.effects.split(",") if e not in CONCEALED or e == "none"]
+    if unknown:
+        ap.error(f"--effects: {unknown[0]!r} is not a concealed case with parameters "
+                 f"(allowed: {', '.join(e for e in CONCEALED if e != 'none')})")
     pooled: dict[str, list[tuple[bool, bool]]] = {}
     print("effect                   parameter                         identifiable  covered")
     for effect in args.effects.split(","):
