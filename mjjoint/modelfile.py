@@ -215,7 +215,9 @@ def dump_model_file(path: str | Path, arm: ArmSpec = ArmSpec(), joint: JointPara
     sections = model_mapping(arm, joint, sample_rate)
     suffix = path.suffix.lower()
     if suffix == ".toml":
-        text = "\n".join(f"[{name}]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in body.items())
+        docs = {t.section: f"  # {t.doc}" for t in TERMS}
+        text = "\n".join(f"[{name}]{docs.get(name, '')}\n"
+                         + "".join(f"{k} = {_toml_value(v)}\n" for k, v in body.items())
                          for name, body in sections.items())
     elif suffix in (".yaml", ".yml"):
         text = yaml.safe_dump(sections, sort_keys=False)

@@ -39,15 +39,15 @@ class Term:
     section: str                       # config section and JointParams field, e.g. "ripple"
     kinds: Mapping[str, type]          # MJCF kind name -> frozen parameter dataclass
     site: str                          # where it acts: "motor", "gear" or "link"
-    doc: str                           # what it is, in words
+    doc: str                           # what it is, in words (the model files' section comment)
     states: tuple[str, ...] = ()       # internal states it adds to the plugin state
     torque: Any = None                 # additive-term kernel (module docstring), or None
     advance: Any = None                # state kernel of an additive term, or None
     default_on: bool = True            # present when the MJCF does not mention the section
     absent: Mapping[str, float] = field(default_factory=dict)  # block values while the term is off
     nested_in: str | None = None       # the section whose dataclass holds this one (hysteresis)
-    # (params, motor_inertia, link_inertia) -> (stiffnesses, slopes, on): the explicit force
-    # terms it puts on the motor ("motor"), the link ("link") or the deflection ("gear") inertia,
+    # (params, motor_inertia, link_inertia) -> (stiffnesses, slopes): the explicit forces it puts
+    # on the one inertia they act on (the motor's, the link's, or the deflection's reduced one),
     # as {label: k/J} and {label: c/J}; see joint.stable_timestep.
     stability: Callable | None = None
     # (params, motion) -> {state: values}: the states on the steady branch of the measured motion
