@@ -153,6 +153,9 @@ class _Condition:
     evaluate: Callable[[np.ndarray], tuple[np.ndarray, dict[str, float]]]
     describe: Callable[[float, dict[str, float]], str]
     null: str = "block"  # how the null residuals are permuted: in blocks or sample by sample
+    # Parameters worth finding for the residual alone (not its permutations): (residual, the
+    # parameters ``evaluate`` found) -> more parameters.
+    refine: Callable[[np.ndarray, dict[str, float]], dict[str, float]] | None = None
 
 
 def _centered_basis(columns: np.ndarray) -> np.ndarray:
@@ -203,14 +206,17 @@ def _periodic(name: str, coordinate: str, angle: np.ndarray, first: int = 1) -> 
 
     def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
         per_k = np.stack([explained(k, R) for k in range(first, MAX_HARMONIC + 1)])
-        k = int(np.argmax(per_k[:, 0])) + first
+        return per_k.max(axis=0), {"k": int(np.argmax(per_k[:, 0])) + first}
+
+    def refine(r: np.ndarray, params: dict[str, float]) -> dict[str, float]:
+        k = params["k"]
         fine = np.linspace(max(k - 0.5, 0.5), k + 0.5, PERIOD_STEPS)
-        k_real = float(fine[np.argmax([explained(f, R[:, :1])[0] for f in fine])])
-        return per_k.max(axis=0), {"k": k, "k_real": round(k_real, 3)}
+        return {"k_real": round(float(fine[np.argmax([explained(f, r[:, None])[0] for f in fine])]), 3)}
 
     return _Condition(
         name, evaluate,
         lambda s, p: f"periodic in {coordinate} at {p['k']} cycles per revolution ({_explains(s)})",
+        refine=refine,
     )
 
 
@@ -467,7 +473,7 @@ def condition_scores(
                 v, params = cond.evaluate(R)
                 values[cond.name].append(v)
                 if first:
-                    found[cond.name] = params
+                    found[cond.name] = params if cond.refine is None else {**params, **cond.refine(r0, params)}
             first = False
     scores = []
     for cond in conds:
