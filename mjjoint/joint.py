@@ -17,7 +17,7 @@ import functools
 from dataclasses import dataclass
 
 from .params import fields_dict, is_number
-from .physics.catalogue import TERMS
+from .physics.catalogue import BY_SECTION, TERMS
 from .physics.load import LoadFriction
 from .physics.ripple import TorqueRipple
 from .physics.stribeck import StaticFriction
@@ -89,7 +89,7 @@ class JointParams:
         """Flat string config for ``<plugin><instance><config key= value=/>``."""
         cfg = {"motor_joint": self.motor_joint, "link_joint": self.link_joint}
         for section, term in self._terms().items():
-            cfg[section] = _kind_of(section, term)
+            cfg[section] = "none" if term is None else BY_SECTION[section].kind_of(term)
             if term is not None:
                 for key, value in fields_dict(term).items():
                     if not dataclasses.is_dataclass(value) and value is not None:
@@ -148,15 +148,9 @@ class JointParams:
 JOINT_FIELDS = {f.name for f in dataclasses.fields(JointParams)} & {t.section for t in TERMS}
 
 
-def _kind_of(section: str, term: object) -> str:
-    if term is None:
-        return "none"
-    return next(k for k, c in SECTIONS[section].items() if isinstance(term, c))
-
-
 def _unmentioned(section: str):
     """A term's parameters when the MJCF does not mention it: its first kind's defaults, or off."""
-    t = next(t for t in TERMS if t.section == section)
+    t = BY_SECTION[section]
     return next(iter(t.kinds.values()))() if t.default_on else None
 
 
@@ -202,7 +196,8 @@ def split_config(cfg: dict[str, str]) -> list[dict[str, str]]:
             continue
         values = value.split()
         if len(values) not in (1, len(pairs)):
-            raise ValueError(f"config key {key!r} has {len(values)} values for {len(pairs)} joints (give 1 or {len(pairs)})")
+            raise ValueError(f"config key {key!r} has {len(values)} values for {len(pairs)} joints "
+                             f"(give 1 or {len(pairs)})")
         for i in range(len(pairs)):
             v = values[0] if len(values) == 1 else values[i]
             if v != "nan" or len(values) == 1:

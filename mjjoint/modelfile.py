@@ -188,13 +188,9 @@ def model_mapping(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(),
     """The sections of a model file describing ``arm`` and ``joint`` (inverse of ``parse_model``)."""
     out = {"simulation": {"sample_rate": float(sample_rate)}, "arm": _values(arm),
            "joint": {"motor_joint": joint.motor_joint, "link_joint": joint.link_joint}}
-    for section in SECTIONS:
-        term = joint.term(section)
-        if term is None:
-            out[section] = {"kind": NONE}
-            continue
-        kind = next(k for k, c in SECTIONS[section].items() if isinstance(term, c))
-        out[section] = {"kind": kind, **_values(term)}
+    for t in TERMS:
+        term = joint.term(t.section)
+        out[t.section] = {"kind": NONE} if term is None else {"kind": t.kind_of(term), **_values(term)}
     return out
 
 

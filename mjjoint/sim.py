@@ -69,17 +69,17 @@ def joint_indices(model: mujoco.MjModel) -> list[JointIndex]:
     from .coupling.layout import LD, LQ, MD, MQ
     plugin_start = mujoco.mj_stateSize(model, FULL) - model.npluginstate
     out = []
-    for i, j, params, blk in ((i, j, p, b) for i in range(model.nplugin)
-                              for j, (p, b) in enumerate(block_for(model._address, i))):
-        motor = np.flatnonzero(model.jnt_qposadr == int(blk[MQ])) if blk[MQ] >= 0 else []
-        acts = [a for a in range(model.nu) if len(motor) and
-                model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and model.actuator_trnid[a, 0] == motor[0]]
-        act = acts[0] if acts else -1
-        out.append(JointIndex(
-            instance=i, params=params, block=blk, motor_qpos=int(blk[MQ]), motor_dof=int(blk[MD]),
-            link_qpos=int(blk[LQ]), link_dof=int(blk[LD]),
-            state_start=plugin_start + int(model.plugin_stateadr[i]) + NSTATE * j, gear_ratio=params.gear_ratio,
-            actuator=act, k_m=float(model.actuator_gear[act, 0]) if act >= 0 else 1.0))
+    for i in range(model.nplugin):
+        for j, (params, blk) in enumerate(block_for(model._address, i)):
+            motor = np.flatnonzero(model.jnt_qposadr == int(blk[MQ])) if blk[MQ] >= 0 else []
+            acts = [a for a in range(model.nu) if len(motor) and model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+                    and model.actuator_trnid[a, 0] == motor[0]]
+            act = acts[0] if acts else -1
+            out.append(JointIndex(
+                instance=i, params=params, block=blk, motor_qpos=int(blk[MQ]), motor_dof=int(blk[MD]),
+                link_qpos=int(blk[LQ]), link_dof=int(blk[LD]),
+                state_start=plugin_start + int(model.plugin_stateadr[i]) + NSTATE * j, gear_ratio=params.gear_ratio,
+                actuator=act, k_m=float(model.actuator_gear[act, 0]) if act >= 0 else 1.0))
     if not out:
         raise ValueError(f"the model has no {PLUGIN_NAME} plugin instance")
     return out

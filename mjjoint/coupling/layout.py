@@ -11,6 +11,7 @@ The kernels read both through the namedtuples below, which numba takes as consta
 from __future__ import annotations
 
 from collections import namedtuple
+from itertools import accumulate
 
 import numpy as np
 
@@ -21,12 +22,10 @@ from ..physics.catalogue import BY_SECTION, TERMS
 # follow each other in its registry row).
 MQ, MD, LQ, LD, NJ = range(5)
 MAX_JOINTS = 8  # joints one instance may drive
-_starts: dict[str, int] = {}
-_n = 5
-for _t in TERMS:
-    _starts[_t.section] = _n
-    _n += 1 + len(_t.fields)
-BLOCK_LEN = _n
+# Each term's first slot (its kind, then its fields) and first state, in catalogue order.
+_starts = dict(zip(BY_SECTION, accumulate((1 + len(t.fields) for t in TERMS), initial=NJ + 1)))
+_state_starts = dict(zip(BY_SECTION, accumulate((len(t.states) for t in TERMS), initial=0)))
+BLOCK_LEN = NJ + 1 + sum(1 + len(t.fields) for t in TERMS)
 
 
 def section(name: str):
@@ -47,9 +46,6 @@ FRICTION_STATIC = BY_SECTION["friction"].kind_code("static")
 # the last evaluation and the other torques on the deflection (kernels.stiffness_limit). NaN:
 # unknown, after a reset or for states set by hand.
 STATE_NAMES = tuple(s for t in TERMS for s in t.states)  # the physical ones, before AT
-_state_starts: dict[str, int] = {}
-for _t in TERMS:
-    _state_starts[_t.section] = sum(len(u.states) for u in TERMS[:TERMS.index(_t)])
 Z1, Z2, OMEGA, QR, WSIGN = (STATE_NAMES.index(s) for s in BY_SECTION["friction"].states)
 X = STATE_NAMES.index("x")
 AT, WP, FP, FO, WPL, TP, FOT = range(len(STATE_NAMES), len(STATE_NAMES) + 7)
