@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
+from typing import Callable, Iterator, Mapping
 
 import numpy as np
 from scipy.fft import irfft, next_fast_len, rfft
@@ -528,6 +528,13 @@ class Location:
             "conditions": worst["conditions"],
             "signals": {name: s.as_dict() for name, s in self.signals.items()},
         }
+
+
+def located_conditions(where: dict) -> Iterator[tuple[str, dict]]:
+    """(signal, condition) pairs of a location as ``locate(...).as_dict()`` gives it, signal by signal."""
+    for signal, loc in where.get("signals", {}).items():
+        for condition in loc.get("conditions", []):
+            yield signal, condition
 
 
 def locate(

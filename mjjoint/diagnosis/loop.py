@@ -87,7 +87,7 @@ from ..identify.windows import Predictor
 from .clock import ScreenClock
 from .features import operating_conditions, reversal_proximity
 from .floor import EXPLAINED_RATIO, Floor, noise_floor
-from .locate import REVERSAL_WINDOW_S, locate
+from .locate import REVERSAL_WINDOW_S, locate, located_conditions
 
 MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
 
@@ -221,20 +221,15 @@ def _n_params(key: str) -> int:
 
 def _evidence(key: str, where: dict) -> list[str]:
     wanted = {c for e in parts(key) for c in EFFECTS[e].evidence}
-    out = []
-    for sig, loc in where.get("signals", {}).items():
-        for c in loc.get("conditions", []):
-            if c["significant"] and c["name"] in wanted:
-                out.append(f"{sig}: {c['description']}")
-    return out
+    return [f"{sig}: {c['description']}" for sig, c in located_conditions(where)
+            if c["significant"] and c["name"] in wanted]
 
 
 def _candidate_variants(effect: str, where: dict) -> list[tuple[dict, dict]]:
     """(initial values, discrete settings) to screen an effect with, suggested by the evidence
     (``Effect.variants``)."""
-    conds = [c for loc in where.get("signals", {}).values() for c in loc.get("conditions", [])]
     variants = EFFECTS[effect].variants
-    return [({}, {})] if variants is None else variants(conds)
+    return [({}, {})] if variants is None else variants([c for _, c in located_conditions(where)])
 
 
 def screened_params(key: str, structure: Structure) -> list[str]:
@@ -274,8 +269,7 @@ def candidates_for(structure: Structure, allowed=None) -> list[str]:
 def generic_candidates(structure: Structure, where: dict) -> tuple[str, ...]:
     """The generic forms (``identify.generic``) the model lacks whose structure a significant
     located condition shows."""
-    shown = {c["name"] for loc in where.get("signals", {}).values() for c in loc.get("conditions", [])
-             if c["significant"]}
+    shown = {c["name"] for _, c in located_conditions(where) if c["significant"]}
     possible = plant_effects(structure.nominal)
     return tuple(e for e in GENERIC if e in possible and e not in structure.effects
                  and shown.intersection(EFFECTS[e].evidence))

@@ -17,6 +17,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy.signal import welch
 
+from ..diagnosis.locate import located_conditions
 from ..identify.effects import EFFECTS
 from .compare import Comparison
 from .plots import MEASURED, axis_label, flat, save, style
@@ -32,10 +33,9 @@ def evidence_signal(effect: str, where: dict, available, default: str) -> str:
     """The signal whose located conditions point at ``effect`` most strongly (else ``default``)."""
     wanted = EFFECTS[effect].evidence
     best, score = default, -1.0
-    for sig, loc in where.get("signals", {}).items():
-        for c in loc.get("conditions", []):
-            if sig in available and c["name"] in wanted and c["significant"] and c["score"] > score:
-                best, score = sig, c["score"]
+    for sig, c in located_conditions(where):
+        if sig in available and c["name"] in wanted and c["significant"] and c["score"] > score:
+            best, score = sig, c["score"]
     return best
 
 
