@@ -101,3 +101,15 @@ class Effect:
             if p.name.split(".", 1)[0] != self.name:
                 raise ValueError(f"parameter {p.name!r} of effect {self.name!r} must be named {self.name}.<symbol>")
 
+
+
+def term_values(section: str, fields: dict[str, str], qualifiers: dict[str, str] | None = None):
+    """An ``Effect.read`` for values one simulator term holds: ``fields`` and ``qualifiers``
+    map parameter -> the term's field. None where the term is off or every one of ``fields`` is
+    zero (a ``qualifier``, such as a period, does not make the effect present)."""
+    def read(model):
+        term = model[1].term(section)
+        if term is None or not any(getattr(term, f) for f in fields.values()):
+            return None
+        return {name: getattr(term, f) for name, f in {**fields, **(qualifiers or {})}.items()}
+    return read

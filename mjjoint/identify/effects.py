@@ -22,7 +22,7 @@ from ..physics.stribeck import StaticFriction
 from ..physics.transmission import Transmission
 from ..physics.catalogue import MODULES
 from ..physics.twosep import TwoSEP
-from .effect import Effect, Param
+from .effect import Effect, Param, term_values
 from .generic import GENERIC_EFFECTS
 
 
@@ -127,9 +127,13 @@ def _delay_variants(conds: list[dict]) -> list[tuple[dict, dict]]:
     return [({}, {})]
 
 
-def _motor_friction(model: Model):
-    f = model[1].friction
-    return f if f is not None and f.fc > 0 else None
+def _friction_read(values, present=lambda f: True, coulomb: bool = True):
+    """``Effect.read`` of a motor friction effect: ``values(f)`` of the model's friction where it
+    is ``present`` and, with ``coulomb``, has a Coulomb level (the effects that refine it need one)."""
+    def read(model: Model):
+        f = model[1].friction
+        return values(f) if f is not None and (f.fc > 0 or not coulomb) and present(f) else None
+    return read
 
 
 def _when(value, read):
@@ -137,21 +141,9 @@ def _when(value, read):
     return None if value is None else read(value)
 
 
-def _read_hysteresis(model: Model):
-    tr = model[1].transmission
-    bw = None if tr is None else tr.hysteresis
-    return _when(bw, lambda h: {"transmission_hysteresis.mu": h.mu, "transmission_hysteresis.x_u": h.x_ultimate})
-
-
 def _read_ripple(r: TorqueRipple) -> dict[str, float]:
     return {"torque_ripple.a": r.amplitude * math.cos(r.phase), "torque_ripple.b": r.amplitude * math.sin(r.phase),
             "torque_ripple.harmonic": r.harmonic}
-
-
-def _gear_value(model: Model, name: str, key: str):
-    tr = model[1].transmission
-    v = None if tr is None else getattr(tr, name)
-    return {key: v} if v else None
 
 
 def _arm_value(model: Model, name: str, key: str):
@@ -164,45 +156,46 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("coulomb_friction", "constant motor friction opposing motion, Fc sgn(w)",
            (Param("coulomb_friction.fc", 0.05, 1e-4, 5.0, unit="N m", dim="force"),),
            lambda m, v: _set_friction(m, fc=v["coulomb_friction.fc"]),
-           evidence=MOTOR_SIGN, plot="motor_velocity", direct_drive=True,
-           term="friction", read=lambda m: _when(_motor_friction(m), lambda f: {"coulomb_friction.fc": f.fc})),
+           evidence=MOTOR_SIGN, plot="motor_velocity", direct_drive=True, term="friction",
+           read=_friction_read(lambda f: {"coulomb_friction.fc": f.fc})),
     Effect("viscous_friction", "motor friction proportional to speed, sigma w",
            (Param("viscous_friction.sigma", 1e-4, 1e-7, 1e-1, unit="N m s/rad", dim="force/speed"),),
            lambda m, v: _set_friction(m, sigma=v["viscous_friction.sigma"]),
-           evidence=("viscous",), plot="motor_velocity", direct_drive=True,
-           term="friction", read=lambda m: _when(m[1].friction, lambda f: {"viscous_friction.sigma": f.sigma} if f.sigma > 0 else None)),
+           evidence=("viscous",), plot="motor_velocity", direct_drive=True, term="friction",
+           read=_friction_read(lambda f: {"viscous_friction.sigma": f.sigma}, lambda f: f.sigma > 0, coulomb=False)),
     Effect("stribeck_friction", "break-away above the Coulomb level at low speed (Eq. 15)",
            (Param("stribeck_friction.ratio", 1.5, 1.0, 5.0, log=False),
             Param("stribeck_friction.vs", 0.5, 1e-3, 100.0, unit="rad/s", dim="speed")),
            _stribeck, requires=("coulomb_friction",),
            evidence=("stribeck", "reversal"), acts_under="reversal", plot="motor_velocity", direct_drive=True,
-           term="friction", read=lambda m: _when(_motor_friction(m), lambda f: {"stribeck_friction.ratio": f.fs / f.fc,
-                                                                "stribeck_friction.vs": f.vs} if f.fs > f.fc else None)),
+           term="friction",
+           read=_friction_read(lambda f: {"stribeck_friction.ratio": f.fs / f.fc, "stribeck_friction.vs": f.vs},
+                               lambda f: f.fs > f.fc)),
     Effect("dynamic_friction", "2SEP pre-sliding hysteresis and frictional lag (Eqs. 11-14)",
            (Param("dynamic_friction.k", 1000.0, 10.0, 1e5, unit="1/rad", dim="1/position"),
             Param("dynamic_friction.b", 50.0, 0.1, 1e4, unit="N m/rad", dim="force/position")),
            _dynamic, requires=("coulomb_friction",),
            evidence=("reversal", "hysteresis", "lag"), acts_under="reversal", plot="motor_velocity",
-           direct_drive=True,
-           term="friction", read=lambda m: _when(_motor_friction(m), lambda f: {"dynamic_friction.k": f.k, "dynamic_friction.b": f.b}
-                                if isinstance(f, TwoSEP) else None)),
+           direct_drive=True, term="friction",
+           read=_friction_read(lambda f: {"dynamic_friction.k": f.k, "dynamic_friction.b": f.b},
+                               lambda f: isinstance(f, TwoSEP))),
     Effect("friction_asymmetry", "direction-dependent friction level",
            (Param("friction_asymmetry.ratio", 0.0, -0.9, 0.9, log=False),),
            _asym, requires=("coulomb_friction",),
-           evidence=("coulomb",), plot="motor_velocity", direct_drive=True,
-           term="friction", read=lambda m: _when(_motor_friction(m), lambda f: {"friction_asymmetry.ratio": f.asym / f.fc}
-                                if f.asym != 0 else None)),
+           evidence=("coulomb",), plot="motor_velocity", direct_drive=True, term="friction",
+           read=_friction_read(lambda f: {"friction_asymmetry.ratio": f.asym / f.fc}, lambda f: f.asym != 0)),
     Effect("viscous_asymmetry", "direction-dependent viscous slope, sigma (1 + r sgn w) w",
            (Param("viscous_asymmetry.ratio", 0.0, -0.9, 0.9, log=False),),
            lambda m, v: _set_friction(m, sigma_asym=v["viscous_asymmetry.ratio"]), requires=("viscous_friction",),
-           evidence=("viscous",), plot="motor_velocity", direct_drive=True,
-           term="friction", read=lambda m: _when(m[1].friction, lambda f: {"viscous_asymmetry.ratio": f.sigma_asym}
-                                if f.sigma > 0 and f.sigma_asym != 0 else None)),
+           evidence=("viscous",), plot="motor_velocity", direct_drive=True, term="friction",
+           read=_friction_read(lambda f: {"viscous_asymmetry.ratio": f.sigma_asym},
+                               lambda f: f.sigma > 0 and f.sigma_asym != 0, coulomb=False)),
     Effect("load_friction", "output bearing friction Fc sgn(theta') + d_f theta'",
            (Param("load_friction.fc", 0.1, 1e-4, 50.0, unit="N m"),
             Param("load_friction.viscous", 0.01, 1e-5, 10.0, unit="N m s/rad")),
            _load, site="link", evidence=("coulomb", "viscous", "reversal"), plot="link_velocity",
-           term="load_friction", read=lambda m: _when(m[1].load_friction, lambda lf: {"load_friction.fc": lf.fc,
+           term="load_friction",
+           read=lambda m: _when(m[1].load_friction, lambda lf: {"load_friction.fc": lf.fc,
                                                                  "load_friction.viscous": lf.viscous})),
     Effect("gravity", "gravity torque of the link, l g sin(theta) (Eq. 9)",
            (Param("gravity.g", 9.81, 0.1, 50.0, unit="m/s^2"),),
@@ -213,27 +206,29 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            (Param("linear_stiffness.k1", 1e4, 1e2, 1e7, unit="N m/rad"),),
            lambda m, v: _set_transmission(m, k1=v["linear_stiffness.k1"], damping=0.0), site="gear",
            evidence=("delta", "resonance"), plot="loops",
-           term="transmission", read=lambda m: _gear_value(m, "k1", "linear_stiffness.k1")),
+           term="transmission", read=term_values("transmission", {"linear_stiffness.k1": "k1"})),
     Effect("nonlinear_stiffness", "hardening gear stiffness, k3 delta^3 (Eq. 16)",
            (Param("nonlinear_stiffness.k3", 1e8, 1e4, 1e13, unit="N m/rad^3"),),
            lambda m, v: _set_transmission(m, k3=v["nonlinear_stiffness.k3"]),
            requires=("linear_stiffness",), site="gear", evidence=("delta",), plot="loops",
-           term="transmission", read=lambda m: _gear_value(m, "k3", "nonlinear_stiffness.k3")),
+           term="transmission", read=term_values("transmission", {"nonlinear_stiffness.k3": "k3"})),
     Effect("transmission_hysteresis", "Bouc-Wen hysteretic (elasto-plastic) gear stiffness (Eqs. 16-17)",
            (Param("transmission_hysteresis.mu", 0.6, 0.02, 0.98, log=False),
             Param("transmission_hysteresis.x_u", 2e-3, 1e-6, 0.1, unit="rad")),
            _hysteresis, requires=("linear_stiffness",), site="gear",
-           evidence=("hysteresis", "small_delta"), plot="loops", term="hysteresis", read=_read_hysteresis),
+           evidence=("hysteresis", "small_delta"), plot="loops", term="hysteresis",
+           read=term_values("hysteresis", {"transmission_hysteresis.mu": "mu",
+                                           "transmission_hysteresis.x_u": "x_ultimate"})),
     Effect("transmission_damping", "viscous damping in the gear, D delta' (Eq. 18)",
            (Param("transmission_damping.d", 1.0, 1e-3, 1e3, unit="N m s/rad"),),
            lambda m, v: _set_transmission(m, damping=v["transmission_damping.d"]),
            requires=("linear_stiffness",), site="gear", evidence=("resonance",), plot="loops",
-           term="transmission", read=lambda m: _gear_value(m, "damping", "transmission_damping.d")),
+           term="transmission", read=term_values("transmission", {"transmission_damping.d": "damping"})),
     Effect("backlash", "play in the gear: dead zone of the deflection (Fig. 3 (a))",
            (Param("backlash.width", 1e-4, 1e-7, 1e-2, unit="rad"),),
            lambda m, v: _set_transmission(m, backlash=v["backlash.width"]),
            requires=("linear_stiffness",), site="gear", evidence=("small_delta", "reversal"), plot="loops",
-           term="transmission", read=lambda m: _gear_value(m, "backlash", "backlash.width")),
+           term="transmission", read=term_values("transmission", {"backlash.width": "backlash"})),
     Effect("torque_ripple", "position-periodic motor torque (cogging / eccentricity)",
            (Param("torque_ripple.a", 0.0, -2.0, 2.0, log=False, unit="N m", dim="force"),
             Param("torque_ripple.b", 0.0, -2.0, 2.0, log=False, unit="N m", dim="force")),

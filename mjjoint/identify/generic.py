@@ -15,26 +15,13 @@ from __future__ import annotations
 import dataclasses
 
 from ..physics.generic import LinkForm, MotorForm
-from .effect import Effect, Param
+from .effect import Effect, Param, term_values
 
 
 def _set(model, section: str, klass: type, **values):
     """The model with the generic term ``section`` updated by ``values``."""
     current = model[1].term(section) or klass()
     return model[0], model[1].with_term(section, dataclasses.replace(current, **values))
-
-
-def _read(section: str, **fields: str):
-    """An effect's values read off a model's generic term: ``fields`` maps parameter -> field;
-    None where the term is off or the form is zero."""
-    def read(model):
-        term = model[1].term(section)
-        if term is None:
-            return None
-        values = {name: getattr(term, field) for name, field in fields.items()}
-        amplitudes = [v for name, v in values.items() if not name.endswith(".cycles")]
-        return values if any(amplitudes) else None
-    return read
 
 
 def _periodic_variants(condition: str, name: str):
@@ -62,7 +49,7 @@ def _periodic(name: str, physics: str, site: str, section: str, klass: type, fie
         lambda m, v: _set(m, section, klass, **{fields[0]: v[a], fields[1]: v[b], "cycles": v[k]}),
         site=site, term=section, evidence=evidence, plot=plot, generic=True, causes=causes,
         variants=_periodic_variants(condition, name),
-        read=_read(section, **{a: fields[0], b: fields[1], k: "cycles"}))
+        read=term_values(section, {a: fields[0], b: fields[1]}, {k: "cycles"}))
 
 
 GENERIC_EFFECTS: tuple[Effect, ...] = (
@@ -70,14 +57,14 @@ GENERIC_EFFECTS: tuple[Effect, ...] = (
            (Param("link_constant.c0", 0.0, -1e3, 1e3, log=False, unit="N m"),),
            lambda m, v: _set(m, "link_form", LinkForm, constant=v["link_constant.c0"]),
            site="link", term="link_form", evidence=("delta",), plot="sin_theta", generic=True,
-           read=_read("link_form", **{"link_constant.c0": "constant"}),
+           read=term_values("link_form", {"link_constant.c0": "constant"}),
            causes="a counterbalance or gravity compensation set off its zero, a cable or hose pulling one way, "
                   "an offset of the torque or deflection sensor"),
     Effect("link_linear_theta", "generic: a torque on the link proportional to the link angle",
            (Param("link_linear_theta.c1", 0.0, -1e4, 1e4, log=False, unit="N m/rad"),),
            lambda m, v: _set(m, "link_form", LinkForm, linear=v["link_linear_theta.c1"]),
            site="link", term="link_form", evidence=("theta", "sin_theta"), plot="sin_theta", generic=True,
-           read=_read("link_form", **{"link_linear_theta.c1": "linear"}),
+           read=term_values("link_form", {"link_linear_theta.c1": "linear"}),
            causes="a spring to the ground (cables, hoses, a gas spring, a counterbalance spring), gravity near "
                   "an upright or hanging pose"),
     _periodic("link_periodic_theta", "generic: a torque on the link periodic in the link angle", "link", "link_form",
