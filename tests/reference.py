@@ -149,8 +149,32 @@ def transmission_torque(delta, ddelta, x, mu, k1, k2, k3, damping, backlash):
 
 # ---- Load bearing and motor ripple ----------------------------------------------------------
 def bearing_friction(w, fc, viscous, v_eps):
-    """F_c sgn(w) + d_f w (Sec. 2.3) with sgn regularised by tanh(w / v_eps)."""
-    return fc * math.tanh(w / v_eps) + viscous * w
+    """F_c sgn(w) + d_f w (Sec. 2.3), sgn regularised by tanh(w / v_eps) where v_eps > 0."""
+    return fc * (math.tanh(w / v_eps) if v_eps > 0 else sgn(w)) + viscous * w
+
+
+def bearing_step(v, hj, fc, viscous, v_eps):
+    """Backward Euler for the bearing on a dof of h/J = hj: the end velocity w1 solves
+    w1 + hj F(w1) = v (F's sign set-valued at 0 when v_eps = 0); returns F, at w1 where it slides.
+    The root by bisection on the increasing left side, 200 halvings."""
+    if hj <= 0:
+        return 0.0
+    if v_eps == 0 and abs(v) <= hj * fc:
+        return v / hj  # sticks: w1 = 0
+
+    def g(w):
+        return w + hj * bearing_friction(w, fc, viscous, v_eps) - v
+
+    lo, hi = sorted((0.0, v))
+    if v_eps == 0:  # off zero the exact sign is the side of v
+        lo, hi = (max(lo, 1e-300), hi) if v > 0 else (lo, min(hi, -1e-300))
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if g(mid) > 0:
+            hi = mid
+        else:
+            lo = mid
+    return bearing_friction(0.5 * (lo + hi), fc, viscous, v_eps)
 
 
 def ripple_torque(q, amplitude, harmonic, phase):
@@ -220,7 +244,7 @@ def stiffness_limit(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, 
 
 
 def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl, other=math.nan,
-                 other_t=math.nan):
+                 other_t=math.nan, other_l=math.nan):
     """(motor, link) generalised forces: u side m q'' = -T/N - f + r, link M theta'' = T - F_L.
 
     The motor's torque is taken at the velocity w1 its step ends with: w1 = wq + hj (other +
@@ -257,7 +281,11 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
     link = t
     if p.load_friction is not None:
         lf = p.load_friction
-        link -= bearing_friction(wtheta, lf.fc, lf.viscous, lf.v_eps)
+        if hjl > 0:  # taken at the link velocity the step ends with; ``other_l``: the link's other torques
+            rest = -link if math.isnan(other_l) else other_l
+            link -= bearing_step(wtheta + hjl * (rest + link), hjl, lf.fc, lf.viscous, lf.v_eps)
+        else:
+            link -= bearing_friction(wtheta, lf.fc, lf.viscous, lf.v_eps)
     return motor, link
 
 

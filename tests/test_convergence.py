@@ -45,7 +45,19 @@ def test_stick_slip_cases_are_well_posed_and_converge(name):
     assert rel_rms(finer.qd, ref.qd) < 0.4 * rel_rms(coarse.qd, ref.qd)
 
 
-@pytest.mark.parametrize("name", ["shipped arm, B = 0, 3 s down-chirp", "shipped arm, static map, 3 s down-chirp"])
-def test_shipped_chirp_without_the_lag(name):
+@pytest.mark.parametrize("name", ["shipped arm, B = 0, regularised bearing, 3 s down-chirp",
+                                  "shipped arm, static map, regularised bearing, 3 s down-chirp"])
+def test_shipped_chirp_without_the_lag_nor_sticking(name):
+    """Without the 2SEP lag and without the bearing's stick events, the shipped chirp is within
+    3 % (what is left is there without any friction: the linear joint's discretisation);
+    docs/design.md."""
     c = measure(CASES[name])
     assert c.speed < 0.01 and c.torque < 0.03, c
+
+
+@pytest.mark.parametrize("name", ["shipped arm, B = 0, 3 s down-chirp", "shipped arm, static map, 3 s down-chirp"])
+def test_the_sticking_bearing_adds_events_that_converge(name):
+    """The sticking bearing's stops and breakaways, each a step early or late, add to the chirp's
+    difference but not to its order: halving the step halves it."""
+    c = measure(CASES[name])
+    assert c.speed < 0.01 and c.order > 0.9 and c.torque_half < 0.6 * c.torque, c

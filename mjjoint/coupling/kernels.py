@@ -19,10 +19,11 @@ from ..physics.stribeck import static_friction, static_friction_slope
 from ..physics.transmission import engaged, transmission_stiffness, transmission_torque
 from ..joint import STABILITY_BUDGET
 from ..physics.twosep import twosep_step
-from .layout import (AT, FO, FOT, FP, FRICTION, FRICTION_2SEP, FRICTION_STATIC, HYSTERESIS, OMEGA,
-                     QR, SITE_TERMS, ADVANCE_TERMS, TP, TRANSMISSION, WP, WPL, WSIGN, X, Z1, Z2)
+from ..physics.load import bearing_friction, bearing_step
+from .layout import (AT, FO, FOL, FOL2, FOT, FP, FPL, FRICTION, FRICTION_2SEP, FRICTION_STATIC, HYSTERESIS, LOAD,
+                     OMEGA, QR, SITE_TERMS, ADVANCE_TERMS, TP, TRANSMISSION, WP, WPL, WSIGN, X, Z1, Z2)
 
-F, T, H = FRICTION, TRANSMISSION, HYSTERESIS
+F, T, H, L = FRICTION, TRANSMISSION, HYSTERESIS, LOAD
 
 
 @kernel
@@ -84,13 +85,26 @@ def implicit_dof(f, g, other, hj):
 
 
 @kernel
-def known_other(st, f):
-    """The other torques on the motor dof, ``st[FO]``; where unknown (NaN: fresh states), those
-    that balance the joint's torque f without the 2SEP lag, recorded in their place: the motor
-    then keeps its velocity but for the lag damper, and a static map acts as written."""
-    if st[FO] != st[FO]:
-        st[FO] = -f
-    return st[FO]
+def known_other(st, slot, f):
+    """The other torques on a dof, ``st[slot]`` (``FO``: the motor's, ``FOL``: the link's);
+    where unknown (NaN: fresh states), those that balance the joint's torque f on it (without
+    the 2SEP lag, without the bearing), recorded in their place: the dof then keeps its velocity
+    but for those, and a static map acts as written."""
+    if st[slot] != st[slot]:
+        st[slot] = -f
+    return st[slot]
+
+
+@kernel
+def bearing(blk, st, fl, wtheta, hjl):
+    """The bearing friction's torque against the link over the step (``load.bearing_step``),
+    with the link dof's other torques as the last step implies them (``known_other``). Without
+    a link dof, the map at the link's velocity."""
+    fc, visc, v_eps = blk[L.fc], blk[L.viscous], blk[L.v_eps]
+    if hjl <= 0.0:
+        return bearing_friction(wtheta, fc, visc, v_eps)
+    other = 2.0 * st[FOL] - st[FOL2]
+    return bearing_step(wtheta + hjl * (other + fl), hjl, fc, visc, v_eps)
 
 
 @kernel
@@ -126,12 +140,13 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     """One evaluation of the joint at (q, wq, theta, wtheta) with states ``st``.
 
     Returns (fm, fl, T, F, F_L): the generalised forces on the motor and link dofs, the
-    transmission torque as applied, the motor friction as applied, and the torque the additive
-    link-site terms (the bearing friction) apply against the link. The motor's
+    transmission torque as applied, the motor friction as applied, and the torque the bearing
+    friction and the additive link-site terms apply against the link. The motor's
     velocity-dependent torques (friction, the 2SEP lag damper, transmission damping) are taken
     linearly implicitly against the motor dof's inertia, ``hj`` = h/J (``implicit_dof``); the
     transmission spring is explicit up to its stability limit (``stiffness_limit``, ``hjl``: the
-    link dof's h/J); friction levels and the link side are explicit.
+    link dof's h/J); the bearing friction at the link velocity the step ends with (``bearing``);
+    friction levels and the rest of the link side are explicit.
     """
     n = blk[T.gear_ratio]
     t = transmitted(blk, st, q, wq, theta, wtheta)
@@ -153,7 +168,7 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     sm, sl = site_torques(blk, st, q, wq, theta, wtheta)
     fm = -t / n - f0 + sm
     gm = -d_eng / (n * n) - s0
-    om = known_other(st, fm)
+    om = known_other(st, FO, fm)
     dwm = implicit_dof(fm, gm, om, hj)
     lag = 0.0
     if kind == FRICTION_2SEP and st[Z2] * (wq + dwm) > 0.0:
@@ -162,10 +177,14 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
         lag = c * (wq + dwm)
     fric = f0 + s0 * dwm + lag
     fm = fm + gm * dwm - lag
-    # Link: T + the link-site terms, explicit. Their velocity slopes are mild at the rated step, and
-    # the link dof's other forces (the flexible rod's unresolved modes) change too fast for last
-    # step's to hold.
-    return fm, t + sl, t, fric, -sl
+    # Link: T + the link-site terms, explicit (their velocity slopes are mild at the rated step),
+    # less the bearing, which sticks: taken at the step's end.
+    fl = t + sl
+    known_other(st, FOL, fl)
+    if st[FOL2] != st[FOL2]:
+        st[FOL2] = st[FOL]
+    fb = bearing(blk, st, fl, wtheta, hjl) if blk[L.kind] != 0.0 else 0.0
+    return fm, fl - fb, t, fric, fb - sl
 
 
 @kernel
@@ -179,6 +198,7 @@ def joint_forces(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     st[FP] = fm
     st[WPL] = wtheta
     st[TP] = t
+    st[FPL] = fl
     return fm, fl
 
 
@@ -205,8 +225,8 @@ def joint_catch_up(blk, st, q, wq, theta, wtheta, t, h, hj, hjl):
     mj_forward), none for fresh states (``st[AT]`` NaN: a reset, states set by hand).
 
     A step also tells the other torques on the motor dof, its velocity change since the last
-    evaluation less what the joint applied then (J dw / h - f), and likewise those on the
-    deflection (J_rel d rate / h + T). Fresh states leave them unknown.
+    evaluation less what the joint applied then (J dw / h - f), and likewise those on the link
+    dof and on the deflection (J_rel d rate / h + T). Fresh states leave them unknown.
 
     The plugin does this at the start of compute rather than in a MuJoCo advance callback:
     same states, same forces, one callback a step instead of two (docs/design.md). So after
@@ -221,9 +241,13 @@ def joint_catch_up(blk, st, q, wq, theta, wtheta, t, h, hj, hjl):
         n = blk[T.gear_ratio]
         r = rate_step(n, h, hj, hjl)
         st[FOT] = (dwq / n - (wtheta - st[WPL])) * h / r + st[TP] if r > 0.0 else 0.0
+        st[FOL2] = st[FOL]
+        st[FOL] = (wtheta - st[WPL]) / hjl - st[FPL] if hjl > 0.0 else 0.0
     elif at != at:
         st[FO] = np.nan
         st[FOT] = np.nan
+        st[FOL] = np.nan
+        st[FOL2] = np.nan
     st[AT] = t
 
 

@@ -36,6 +36,7 @@ def section(name: str):
 
 
 FRICTION, TRANSMISSION, HYSTERESIS = section("friction"), section("transmission"), section("hysteresis")
+LOAD = section("load_friction")
 FRICTION_2SEP = BY_SECTION["friction"].kind_code("2sep")
 FRICTION_STATIC = BY_SECTION["friction"].kind_code("static")
 
@@ -43,13 +44,15 @@ FRICTION_STATIC = BY_SECTION["friction"].kind_code("static")
 # next evaluated; kernels.joint_catch_up), then the integrator's memory: the motor's velocity
 # and the joint's torque on it at the last evaluation and the other torques on it that the
 # step since implies (kernels.implicit_dof), the link's velocity and the transmission torque at
-# the last evaluation and the other torques on the deflection (kernels.stiffness_limit). NaN:
-# unknown, after a reset or for states set by hand.
+# the last evaluation and the other torques on the deflection (kernels.stiffness_limit), the
+# joint's torque on the link at the last evaluation and the other torques on the link dof
+# (the bearing's step, kernels.joint_evaluate). NaN: unknown, after a reset or for states set
+# by hand.
 STATE_NAMES = tuple(s for t in TERMS for s in t.states)  # the physical ones, before AT
 Z1, Z2, OMEGA, QR, WSIGN = (STATE_NAMES.index(s) for s in BY_SECTION["friction"].states)
 X = STATE_NAMES.index("x")
-AT, WP, FP, FO, WPL, TP, FOT = range(len(STATE_NAMES), len(STATE_NAMES) + 7)
-NSTATE = len(STATE_NAMES) + 7
+AT, WP, FP, FO, WPL, TP, FOT, FPL, FOL, FOL2 = range(len(STATE_NAMES), len(STATE_NAMES) + 10)
+NSTATE = len(STATE_NAMES) + 10
 
 # The additive terms, as the kernels call them: (torque kernel, first block slot, first state).
 SITE_TERMS = tuple((t.torque, _starts[t.section], _state_starts[t.section]) for t in TERMS if t.torque is not None)

@@ -20,6 +20,7 @@ from ..assets.builder import ArmSpec
 from ..assets.drive import DriveSpec, build_drive
 from ..excitation import Chirp, Impulse
 from ..joint import GROUND, JointParams
+from ..physics.load import LoadFriction
 from ..physics.stribeck import StaticFriction
 from ..physics.transmission import Transmission
 from ..physics.twosep import TwoSEP
@@ -28,6 +29,7 @@ from ..sim import Simulator, Trace
 SHIPPED_STEP = 5e-4
 FINE = 100         # the reference step is the shipped one over this
 RATE = 1000.0      # input and sample rate [Hz]
+REGULARISED = LoadFriction(v_eps=0.15)  # the bearing's sign as tanh(w / 0.15 rad/s)
 
 
 def rel_rms(a: np.ndarray, ref: np.ndarray) -> float:
@@ -97,6 +99,15 @@ def cases() -> list[Case]:
         Case("shipped arm, B = 0, 3 s down-chirp", shipped_arm, JointParams(friction=TwoSEP(b=0.0)), chirp, "tau"),
         Case("shipped arm, static map, 3 s down-chirp", shipped_arm, JointParams(friction=StaticFriction()), chirp,
              "tau"),
+        # no friction anywhere, no hysteresis, a linear gear: the integrator's error on the linear joint
+        Case("shipped arm, linear joint without friction, 3 s down-chirp", shipped_arm,
+             JointParams(friction=None, load_friction=None, transmission=Transmission(hysteresis=None, k3=0.0)),
+             chirp, "tau"),
+        # the bearing's sign regularised (it creeps instead of sticking): no link-side stick events
+        Case("shipped arm, B = 0, regularised bearing, 3 s down-chirp", shipped_arm,
+             JointParams(friction=TwoSEP(b=0.0), load_friction=REGULARISED), chirp, "tau"),
+        Case("shipped arm, static map, regularised bearing, 3 s down-chirp", shipped_arm,
+             JointParams(friction=StaticFriction(), load_friction=REGULARISED), chirp, "tau"),
     ]
 
 

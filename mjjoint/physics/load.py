@@ -2,6 +2,10 @@
 
 Gravity G = l g sin(theta) (Eq. 9) and link flexibility are not written here: they come from
 the MJCF bodies (link mass, lever, flexible segments) through MuJoCo's multibody dynamics.
+
+The bearing is dry friction: at rest it holds any torque up to F_c. The joint's scheme
+(``coupling.kernels``) takes it at the link velocity the step ends with (``bearing_step``), so
+it sticks exactly, at any step, instead of creeping as a regularised sign does.
 """
 from __future__ import annotations
 
@@ -15,7 +19,54 @@ from .term import Term
 
 @kernel
 def bearing_friction(w: float, fc: float, viscous: float, v_eps: float) -> float:
-    """F_c tanh(w / v_eps) + d_f w: the smoothed sign keeps the ODE Lipschitz at w = 0."""
+    """F_c sgn(w) + d_f w, the sign regularised as tanh(w / v_eps) where v_eps > 0; 0 at w = 0
+    (at rest the exact sign is set-valued: ``bearing_step`` decides what the bearing holds)."""
+    if v_eps > 0.0:
+        sg = smooth_sign(w, v_eps)
+    else:
+        sg = 1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0)
+    return fc * sg + viscous * w
+
+
+@kernel
+def bearing_step(v: float, hj: float, fc: float, viscous: float, v_eps: float) -> float:
+    """The bearing's torque over a step, taken at the velocity w1 the step ends with (backward
+    Euler): w1 = v - hj F(w1), ``v`` the velocity the step would end with without the bearing,
+    ``hj`` = h / J of the dof it acts on.
+
+    With the exact sign (v_eps = 0) the bearing holds the dof at rest while |v| <= hj F_c (and
+    applies v / hj, what stops it), else slides on: closed form. With a regularised sign the
+    root of the increasing w1 + hj F(w1) - v is bracketed by 0 and v / (1 + hj d_f): Newton,
+    bisecting when a step leaves the bracket. Either way the solution exists, is unique and never
+    reverses the motion, at any step and any F_c / J.
+    """
+    if hj <= 0.0:
+        return 0.0
+    if v_eps <= 0.0:
+        if abs(v) <= hj * fc:
+            return v / hj
+        sg = 1.0 if v > 0.0 else -1.0
+        return fc * sg + viscous * (v - hj * fc * sg) / (1.0 + hj * viscous)
+    lo = 0.0
+    hi = v / (1.0 + hj * viscous)
+    if hi < lo:
+        lo, hi = hi, lo
+    w = 0.5 * (lo + hi)
+    for _ in range(60):
+        sg = smooth_sign(w, v_eps)
+        g = w + hj * (fc * sg + viscous * w) - v
+        if g > 0.0:
+            hi = w
+        else:
+            lo = w
+        slope = 1.0 + hj * (fc * (1.0 - sg * sg) / v_eps + viscous)
+        nxt = w - g / slope
+        if not lo < nxt < hi:
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - w) <= 1e-15 * abs(nxt):
+            w = nxt
+            break
+        w = nxt
     return fc * smooth_sign(w, v_eps) + viscous * w
 
 
@@ -25,28 +76,18 @@ class LoadFriction:
 
     fc: float = 0.5        # [N·m]: cross-roller output bearing, catalogue order for size 20
     viscous: float = 0.05  # d_f [N·m·s/rad]
-    # Sign regularisation [rad/s]: explicit stability needs fc h/(v_eps J) < 2 (1.5 with margin)
-    # on the apparent inertia behind the gear, the hub alone for a flexible rod (2e-3 kg m^2,
-    # 1.6e-3 for an elbow on a recoiling upper arm); 0.15 rad/s gives 1.04 there at fc = 0.5 N m.
-    v_eps: float = 0.15
+    # Sign regularisation [rad/s]; 0 (default): the exact sign, a bearing that sticks. Any value
+    # is stable at any step (``bearing_step``).
+    v_eps: float = 0.0
 
     def __post_init__(self) -> None:
         check("fc", self.fc, 0.0)
         check("viscous", self.viscous, 0.0)
-        check("v_eps", self.v_eps, 0.0, lo_open=True)
+        check("v_eps", self.v_eps, 0.0)
 
     def __call__(self, w: float) -> float:
         return bearing_friction(w, self.fc, self.viscous, self.v_eps)
 
 
-@kernel
-def load_torque(blk, o, st, s, q, wq, theta, wtheta):
-    """The term's generalised forces (motor, link): the bearing friction against the link."""
-    return 0.0, -bearing_friction(wtheta, blk[o + P.fc], blk[o + P.viscous], blk[o + P.v_eps])
-
-
 TERM = Term(section="load_friction", kinds={"bearing": LoadFriction}, site="link",
-            doc="output bearing friction, Fc sgn(theta') + d_f theta'", torque=load_torque,
-            stability=lambda lf, motor_inertia, link_inertia: (
-                {}, {"load_friction.v_eps (Coulomb slope)": (lf.fc / lf.v_eps + lf.viscous) / link_inertia}))
-P = TERM.offsets
+            doc="output bearing friction, Fc sgn(theta') + d_f theta'")

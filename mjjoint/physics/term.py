@@ -6,9 +6,10 @@ state, its ``JointParams`` field, its model-file table, its stability bound and 
 states are all read off its ``Term``. Nothing else lists a term's parameters.
 
 Two roles:
-- The motor friction, the transmission and its hysteresis are integrated together by the
-  joint's scheme (the rotor's torques implicit, the gear's stiffness limited: ``coupling.kernels``),
-  which calls their kernels by name.
+- The motor friction, the transmission and its hysteresis, and the output bearing's friction
+  are integrated by the joint's scheme (the rotor's torques implicit, the gear's stiffness
+  limited, the bearing taken at the step's end: ``coupling.kernels``), which calls their
+  kernels by name.
 - Every other term is an additive torque at a site: its ``torque`` kernel returns the
   generalised forces on the motor and link dofs, and its optional ``advance`` kernel steps its
   states. The plugin sums them in declaration order; a new term of this kind needs nothing but
