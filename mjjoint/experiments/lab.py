@@ -26,8 +26,7 @@ flexible rod with 1 kg tip, gravity), driven open loop by the motor torque u = k
   peaks at a few tens of deg/s (~29; the chapter reports ~60) and gravity then brakes it to a
   standstill below the horizontal (~57 deg): N (u - Fc) = 4.0 N m stays below m l g = 4.6 N m,
   so the motor's sliding friction alone holds the link. At 0.11 N m (4.8 N m) only the
-  bearing's Coulomb friction could stop it, and its regularisation (v_eps = 0.15 rad/s) turns
-  that into a weak viscous term at creep speed: the link creeps on past 90 deg.
+  bearing's Coulomb friction (0.5 N m) can hold it past the horizontal.
 """
 from __future__ import annotations
 
