@@ -34,9 +34,33 @@ def steady_state(w, fc, fs, vs, shape, sigma, asym, sigma_asym):
 
 
 def static_friction(w, fc, fs, vs, shape, sigma, asym, v_eps, sigma_asym):
-    """S(w) with every sgn(w) replaced by tanh(w / v_eps) (|w| by w tanh(w / v_eps))."""
+    """S(w) with every sgn(w) replaced by tanh(w / v_eps) (|w| by w tanh(w / v_eps)); v_eps = 0:
+    S(w) itself."""
+    if v_eps == 0:
+        return steady_state(w, fc, fs, vs, shape, sigma, asym, sigma_asym)
     d = math.tanh(w / v_eps)
     return d * stribeck_level(w, fc + asym * d, fs + asym * d, vs, shape) + sigma * w + sigma_asym * sigma * w * d
+
+
+def static_friction_step(a, k, hj, fc, fs, vs, shape, sigma, asym, sigma_asym):
+    """Backward Euler for the exact static map on a dof of h/J = hj with other slopes k:
+    k w1 + hj S(w1) = a, S set-valued at rest. The root by
+    bisection on the side of a (one root where the level does not dip: Fs <= Fc). Returns
+    (w1, S)."""
+    if hj <= 0:
+        return a / k, 0.0
+    if -hj * (fs - asym) <= a <= hj * (fs + asym):
+        return 0.0, a / hj  # holds
+    d = sgn(a)
+    lo, hi = sorted((d * 1e-300, a / k))
+    for _ in range(300):
+        mid = 0.5 * (lo + hi)
+        if (k * mid + hj * steady_state(mid, fc, fs, vs, shape, sigma, asym, sigma_asym) - a) > 0:
+            hi = mid
+        else:
+            lo = mid
+    w1 = 0.5 * (lo + hi)
+    return w1, steady_state(w1, fc, fs, vs, shape, sigma, asym, sigma_asym)
 
 
 # ---- 2SEP, Eqs. 11-15 -------------------------------------------------------------------
@@ -257,17 +281,29 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
     tr = p.transmission
     n = tr.gear_ratio
     f = p.friction
+    explicit = -t / n + (ripple_torque(q, p.ripple.amplitude, p.ripple.harmonic, p.ripple.phase)
+                         if p.ripple is not None else 0.0)
+    engaged_teeth = tr.backlash == 0.0 or engaged(q / n - theta, tr.backlash) != 0.0
+    damping = -(tr.damping if engaged_teeth else 0.0) / n ** 2
+    if isinstance(f, StaticFriction) and f.v_eps == 0 and hj > 0:
+        # the exact sign: (1 - damping hj) w1 + hj S(w1) = (1 - damping hj) wq + hj (other + explicit)
+        args = (f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.sigma_asym)
+        if math.isnan(other):
+            other = -(explicit - steady_state(wq, *args))
+        k = 1.0 - damping * hj
+        a = k * wq + hj * (other + explicit)
+        w1, fric = static_friction_step(a, k, hj, *args)
+        motor = explicit + damping * (w1 - wq) - fric
+        return motor, _link(p, t, wtheta, hjl, other_l)
     base, slope = 0.0, 0.0
     if isinstance(f, TwoSEP):
         base = s.z1
     elif isinstance(f, StaticFriction):
         args = (f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps, f.sigma_asym)
-        base, slope = static_friction(wq, *args), max(0.0, static_friction_slope(wq, *args))
-    motor = -t / n - base
-    if p.ripple is not None:
-        motor += ripple_torque(q, p.ripple.amplitude, p.ripple.harmonic, p.ripple.phase)
-    engaged_teeth = tr.backlash == 0.0 or engaged(q / n - theta, tr.backlash) != 0.0
-    g = -(tr.damping if engaged_teeth else 0.0) / n ** 2 - slope
+        base = static_friction(wq, *args)
+        slope = max(0.0, static_friction_slope(wq, *args)) if f.v_eps > 0 else 0.0
+    motor = explicit - base
+    g = damping - slope
     if math.isnan(other):
         other = -motor
     # Without the lag: w1 (1 - g hj) = wq (1 - g hj) + hj (other + motor).
@@ -278,15 +314,21 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
         w1 = (wq * (1.0 - g * hj) + hj * (other + motor)) / (1.0 - g * hj + c * hj)
         lag = c * w1
     motor = motor + g * (w1 - wq) - lag
+    return motor, _link(p, t, wtheta, hjl, other_l)
+
+
+def _link(p: JointParams, t, wtheta, hjl, other_l):
+    """The link's generalised force, T less the bearing taken at the link velocity the step ends
+    with; ``other_l``: the link's other torques (NaN: unknown, those balancing T)."""
     link = t
     if p.load_friction is not None:
         lf = p.load_friction
-        if hjl > 0:  # taken at the link velocity the step ends with; ``other_l``: the link's other torques
+        if hjl > 0:
             rest = -link if math.isnan(other_l) else other_l
             link -= bearing_step(wtheta + hjl * (rest + link), hjl, lf.fc, lf.viscous, lf.v_eps)
         else:
             link -= bearing_friction(wtheta, lf.fc, lf.viscous, lf.v_eps)
-    return motor, link
+    return link
 
 
 def joint_advance(p: JointParams, s: JointState, q, wq, theta, wtheta, h) -> JointState:

@@ -7,6 +7,7 @@ Fig. 9), checked on the kernels themselves.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -17,7 +18,7 @@ from hypothesis import strategies as st
 import reference as ref
 from mjjoint.coupling import kernels
 from mjjoint.assets.drive import drive_joint
-from mjjoint.coupling.layout import AT, FO, FOL, FOT, FP, FPL, NSTATE, TP, WP, WPL, pack
+from mjjoint.coupling.layout import AT, FO, FOL, FOL2, FOT, FP, FPL, NSTATE, TP, WP, WPL, pack
 from mjjoint.joint import JointParams
 from mjjoint.physics import boucwen, load, ripple, stribeck, transmission, twosep
 from mjjoint.physics.boucwen import BoucWen
@@ -60,6 +61,14 @@ def statics(draw) -> StaticFriction:
 
 
 @st.composite
+def exact_statics(draw) -> StaticFriction:
+    """Static maps with the exact sign and no Stribeck dip (Fs <= Fc), where the step's
+    equation has one root, which the reference's bisection finds."""
+    f = draw(statics())
+    return dataclasses.replace(f, fs=min(f.fs, f.fc), asym=min(f.fc, f.fs) * draw(finite(-1.0, 1.0)), v_eps=0.0)
+
+
+@st.composite
 def boucwens(draw) -> BoucWen:
     beta = draw(finite(0.0, 2000.0))
     return BoucWen(mu=draw(finite(0.0, 1.0)), a=draw(finite(0.05, 3.0)), beta=beta,
@@ -77,7 +86,8 @@ def transmissions(draw) -> Transmission:
 
 @st.composite
 def joint_params(draw) -> JointParams:
-    return JointParams(friction=draw(st.none() | twoseps() | statics()), transmission=draw(transmissions()),
+    return JointParams(friction=draw(st.none() | twoseps() | statics() | exact_statics()),
+                       transmission=draw(transmissions()),
                        load_friction=draw(st.none() | st.builds(LoadFriction, fc=finite(0.0, 2.0),
                                                                 viscous=finite(0.0, 1.0),
                                                                 v_eps=st.just(0.0) | finite(1e-5, 1.0))),
@@ -226,6 +236,28 @@ def test_bearing_friction(w, fc, visc, v_eps):
 
 
 @SETTINGS
+@given(a=velocity, k=finite(1.0, 10.0), hj=finite(1e-6, 100.0), p=statics())
+@example(a=1.0, k=1.0, hj=10.0, p=StaticFriction())        # holds: |a| <= hj Fs
+@example(a=-5.0, k=1.5, hj=10.0, p=StaticFriction())       # slides through the Stribeck dip
+def test_static_friction_step(a, k, hj, p):
+    """The exact static map over a step holds the dof below break-away and otherwise returns a
+    root of k w1 + hj S(w1) = a on the drive's side, no faster than without friction; where S
+    has no dip (Fs <= Fc) the root is unique: the reference's."""
+    args = (p.fc, p.fs, p.vs, p.shape, p.sigma, p.asym, p.sigma_asym)
+    w1, f = stribeck.static_friction_step(a, k, hj, *args)
+    scale = abs(a) + hj * (p.fs + p.fc + abs(p.asym) + p.sigma * abs(a))
+    if -hj * (p.fs - p.asym) <= a <= hj * (p.fs + p.asym):
+        assert w1 == 0.0 and f == a / hj
+        return
+    assert w1 * a > 0 and abs(w1) <= abs(a) / k * (1 + 1e-12)
+    assert f == ref.steady_state(w1, *args) or close(f, ref.steady_state(w1, *args), scale / hj)
+    assert abs(k * w1 + hj * f - a) <= 1e-9 * scale
+    if p.fs <= p.fc:
+        rw, rf = ref.static_friction_step(a, k, hj, *args)
+        assert close(f, rf, scale / hj) and close(w1, rw, abs(a) / k)
+
+
+@SETTINGS
 @given(v=velocity, hj=finite(0.0, 100.0), fc=finite(0.0, 2.0), visc=finite(0.0, 1.0),
        v_eps=st.just(0.0) | finite(1e-6, 1.0))
 @example(v=0.5, hj=10.0, fc=0.1, visc=0.05, v_eps=0.0)     # holds: |v| <= hj Fc
@@ -263,15 +295,16 @@ def joint_motion(draw) -> tuple[float, float, float, float]:
 
 
 def plugin_state(s: ref.JointState, at: float = np.nan, other: float = np.nan, other_t: float = np.nan,
-                 other_l: float = np.nan) -> np.ndarray:
+                 other_l: float = np.nan, trend: float = 0.0) -> np.ndarray:
     """The plugin's state slice: the physical states, their time, and the other torques on the
-    motor, on the deflection and on the link."""
+    motor, on the deflection and on the link (``trend`` less the step before)."""
     out = np.zeros(NSTATE)
     out[:AT] = s.as_list()
     out[AT] = at
     out[FO] = other
     out[FOT] = other_t
     out[FOL] = other_l
+    out[FOL2] = other_l - trend
     return out
 
 
@@ -279,23 +312,25 @@ def plugin_state(s: ref.JointState, at: float = np.nan, other: float = np.nan, o
 @given(p=joint_params(), s=joint_states(), m=joint_motion(), h=finite(1e-5, 2e-3), hj=finite(0.0, 100.0),
        hjl=finite(0.0, 1.0), other=st.one_of(st.just(np.nan), finite(-5.0, 5.0)),
        other_t=st.one_of(st.just(np.nan), finite(-500.0, 500.0)),
-       other_l=st.one_of(st.just(np.nan), finite(-50.0, 50.0)))
+       other_l=st.one_of(st.just(np.nan), finite(-50.0, 50.0)), trend=finite(-5.0, 5.0))
 @example(p=JointParams(), s=ref.JointState(), m=(0.0, 0.0, 0.0, 0.0), h=5e-4, hj=10.0, hjl=0.25, other=np.nan,
-         other_t=np.nan, other_l=np.nan)
+         other_t=np.nan, other_l=np.nan, trend=0.0)
 @example(p=JointParams(), s=ref.JointState(x=0.002), m=(0.0, 50.0, 0.015, -2.0), h=5e-4, hj=10.0, hjl=0.25,
-         other=0.1, other_t=150.0, other_l=-3.0)  # far past the rated deflection: the stiffness limit acts
+         other=0.1, other_t=150.0, other_l=-3.0, trend=0.5)  # far past the rated deflection: the stiffness limit acts
 @example(p=JointParams(friction=StaticFriction(), ripple=TorqueRipple(),
                        transmission=Transmission(backlash=0.002)),
          s=ref.JointState(x=0.001), m=(0.3, 2.0, 0.0005, -1.0), h=5e-4, hj=10.0, hjl=0.25, other=0.2,
-         other_t=np.nan, other_l=0.4)
-def test_joint_forces_and_advance(p, s, m, h, hj, hjl, other, other_t, other_l):
+         other_t=np.nan, other_l=0.4, trend=0.0)
+def test_joint_forces_and_advance(p, s, m, h, hj, hjl, other, other_t, other_l, trend):
+    """The kernels against the reference; the link's other torques are extrapolated from the
+    last two steps' (``trend`` apart)."""
     theta, wq, delta, wtheta = m
     n = p.transmission.gear_ratio
     q = n * (theta + delta)
     blk = pack(p, 0, 0, 1, 1)
-    st_arr = plugin_state(s, other=other, other_t=other_t, other_l=other_l)
+    st_arr = plugin_state(s, other=other, other_t=other_t, other_l=other_l, trend=trend)
     fm, fl = kernels.joint_forces(blk, st_arr, q, wq, theta, wtheta, h, hj, hjl)
-    rm, rl = ref.joint_forces(p, s, q, wq, theta, wtheta, h, hj, hjl, other, other_t, other_l)
+    rm, rl = ref.joint_forces(p, s, q, wq, theta, wtheta, h, hj, hjl, other, other_t, other_l + trend)
     # the evaluation is recorded for the next step
     assert st_arr[WP] == wq and st_arr[FP] == fm and st_arr[WPL] == wtheta and np.isfinite(st_arr[TP])
     assert st_arr[FPL] == fl
@@ -335,6 +370,7 @@ def test_catch_up_advances_once_per_new_time(p, s, m, h, hj, hjl):
             want_t = j_rel * (0.5 / n + 0.2) / h + 3.0
             assert close(st_arr[FOT], want_t, 1e-9 * (abs(want_t) + j_rel * (abs(wq) / n + abs(wtheta)) / h))
             assert close(st_arr[FOL], -0.2 / hjl - 1.5, 1e-9 * (0.2 / hjl + abs(wtheta) / hjl + 1.5))
+            assert st_arr[FOL2] == -2.0  # the step before's, for the extrapolation
         elif at == at:
             assert st_arr[FO] == 0.3 and st_arr[FOT] == 7.0 and st_arr[FOL] == -2.0
         else:

@@ -15,7 +15,7 @@ from numba import literal_unroll
 
 from ..physics.boucwen import boucwen_step
 from ..physics.jit import kernel
-from ..physics.stribeck import static_friction, static_friction_slope
+from ..physics.stribeck import static_friction, static_friction_slope, static_friction_step
 from ..physics.transmission import engaged, transmission_stiffness, transmission_torque
 from ..joint import STABILITY_BUDGET
 from ..physics.twosep import twosep_step
@@ -143,7 +143,8 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     transmission torque as applied, the motor friction as applied, and the torque the bearing
     friction and the additive link-site terms apply against the link. The motor's
     velocity-dependent torques (friction, the 2SEP lag damper, transmission damping) are taken
-    linearly implicitly against the motor dof's inertia, ``hj`` = h/J (``implicit_dof``); the
+    linearly implicitly against the motor dof's inertia, ``hj`` = h/J (``rotor``), or, for the
+    static map's exact sign, at the velocity the step ends with (``exact_static_rotor``); the
     transmission spring is explicit up to its stability limit (``stiffness_limit``, ``hjl``: the
     link dof's h/J); the bearing friction at the link velocity the step ends with (``bearing``);
     friction levels and the rest of the link side are explicit.
@@ -154,29 +155,13 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     in_gap = de == 0.0 and blk[T.backlash] > 0.0  # no torque passes, none of it damped
     t += stiffness_limit(blk, st, t, de, in_gap, wq, wtheta, h, hj, hjl)
     d_eng = 0.0 if in_gap else blk[T.damping]
-    # Motor: -T/N - F + ripple. 2SEP's z1 is a position state (no slope); its lag is a one-sided
-    # damper, decided on the velocity the step would reach without it.
+    # Motor: -T/N - F + ripple.
     kind = blk[F.kind]
-    f0 = 0.0
-    s0 = 0.0
-    if kind == FRICTION_STATIC:
-        f0 = static_friction(wq, blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape], blk[F.sigma], blk[F.asym], blk[F.v_eps], blk[F.sigma_asym])
-        s0 = max(0.0, static_friction_slope(wq, blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape], blk[F.sigma], blk[F.asym],
-                                            blk[F.v_eps], blk[F.sigma_asym]))
-    elif kind == FRICTION_2SEP:
-        f0 = st[Z1]
     sm, sl = site_torques(blk, st, q, wq, theta, wtheta)
-    fm = -t / n - f0 + sm
-    gm = -d_eng / (n * n) - s0
-    om = known_other(st, FO, fm)
-    dwm = implicit_dof(fm, gm, om, hj)
-    lag = 0.0
-    if kind == FRICTION_2SEP and st[Z2] * (wq + dwm) > 0.0:
-        c = blk[F.b] * abs(st[Z2])
-        dwm = implicit_dof(fm - c * wq, gm - c, om, hj)
-        lag = c * (wq + dwm)
-    fric = f0 + s0 * dwm + lag
-    fm = fm + gm * dwm - lag
+    if kind == FRICTION_STATIC and blk[F.v_eps] <= 0.0 and hj > 0.0:
+        fm, fric = exact_static_rotor(blk, st, -t / n + sm, -d_eng / (n * n), wq, hj)
+    else:
+        fm, fric = rotor(blk, st, kind, -t / n + sm, -d_eng / (n * n), wq, hj)
     # Link: T + the link-site terms, explicit (their velocity slopes are mild at the rated step),
     # less the bearing, which sticks: taken at the step's end.
     fl = t + sl
@@ -185,6 +170,48 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
         st[FOL2] = st[FOL]
     fb = bearing(blk, st, fl, wtheta, hjl) if blk[L.kind] != 0.0 else 0.0
     return fm, fl - fb, t, fric, fb - sl
+
+
+@kernel
+def exact_static_rotor(blk, st, fx, gd, wq, hj):
+    """(torque on the motor dof, friction) with the static map's exact sign (v_eps = 0), taken
+    at the velocity the step ends with together with the rotor's linear slope ``gd`` (the
+    engaged teeth's damping): (1 - gd hj) w1 + hj F(w1) = (1 - gd hj) wq + hj (other + fx)
+    (``stribeck.static_friction_step``); ``fx``: the joint's explicit torque on the rotor."""
+    fc, fs, vs, shape = blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape]
+    sigma, asym, sigma_asym = blk[F.sigma], blk[F.asym], blk[F.sigma_asym]
+    om = known_other(st, FO, fx - static_friction(wq, fc, fs, vs, shape, sigma, asym, 0.0, sigma_asym))
+    k = 1.0 - gd * hj
+    a = k * wq + hj * (om + fx)
+    w1, fric = static_friction_step(a, k, hj, fc, fs, vs, shape, sigma, asym, sigma_asym)
+    return fx + gd * (w1 - wq) - fric, fric
+
+
+@kernel
+def rotor(blk, st, kind, fx, gd, wq, hj):
+    """(torque on the motor dof, friction) with 2SEP or the regularised static map: the
+    velocity slopes linearly implicit (``implicit_dof``), 2SEP's lag a one-sided damper decided
+    on the velocity the step would reach without it; ``fx``: the joint's explicit torque on the
+    rotor, ``gd`` its linear slope."""
+    f0 = 0.0
+    s0 = 0.0
+    if kind == FRICTION_STATIC:
+        f0 = static_friction(wq, blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape], blk[F.sigma], blk[F.asym], blk[F.v_eps], blk[F.sigma_asym])
+        if blk[F.v_eps] > 0.0:  # (the exact sign without a motor dof: the map at wq)
+            s0 = max(0.0, static_friction_slope(wq, blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape], blk[F.sigma],
+                                                blk[F.asym], blk[F.v_eps], blk[F.sigma_asym]))
+    elif kind == FRICTION_2SEP:
+        f0 = st[Z1]
+    fm = fx - f0
+    gm = gd - s0
+    om = known_other(st, FO, fm)
+    dwm = implicit_dof(fm, gm, om, hj)
+    lag = 0.0
+    if kind == FRICTION_2SEP and st[Z2] * (wq + dwm) > 0.0:
+        c = blk[F.b] * abs(st[Z2])
+        dwm = implicit_dof(fm - c * wq, gm - c, om, hj)
+        lag = c * (wq + dwm)
+    return fm + gm * dwm - lag, f0 + s0 * dwm + lag
 
 
 @kernel

@@ -86,6 +86,8 @@ def cases() -> list[Case]:
              JointParams(friction=TwoSEP(b=0.0)), 1.25 * sine, "friction"),
         Case("free rotor, static map, sine 1.25 Fs, 1 Hz", free_rotor, JointParams(friction=StaticFriction()),
              1.25 * sine, "friction"),
+        Case("free rotor, static map with the exact sign, sine 1.25 Fs, 1 Hz", free_rotor,
+             JointParams(friction=StaticFriction(v_eps=0.0)), 1.25 * sine, "friction"),
         Case("locked output, sine 1.25 Fs, 2 Hz", shipped_arm, locked, 1.25 * sine2, "tau"),
         Case("locked output, step 0.1 N m", shipped_arm, locked, step, "tau"),
         Case("locked output, 1.5 ms impulse (Sec. 4)", shipped_arm, locked, impulse, "tau", events=True),

@@ -17,9 +17,11 @@ STATES = ("z1", "z2", "omega", "q_r", "w_sign")
 
 
 def _stability(f, motor_inertia: float, link_inertia: float):
-    """2SEP's pre-sliding spring, or the static map's slope at w = 0, on the rotor."""
+    """2SEP's pre-sliding spring, or the regularised static map's slope at w = 0, on the rotor."""
     if isinstance(f, TwoSEP):
         return {"friction.k (pre-sliding stiffness)": 2 * (f.fs + abs(f.asym)) * f.k / motor_inertia}, {}
+    if f.v_eps == 0:  # the exact sign, taken at the step's end: stable at any step
+        return {}, {}
     return {}, {"friction.v_eps (Coulomb slope)": (max(f.fc, f.fs) + abs(f.asym)) / (f.v_eps * motor_inertia)
                 + f.sigma * (1 + abs(f.sigma_asym)) / motor_inertia}
 

@@ -51,9 +51,64 @@ def steady_state(w: float, fc: float, fs: float, vs: float, shape: float, sigma:
 @kernel
 def static_friction(w: float, fc: float, fs: float, vs: float, shape: float, sigma: float,
                     asym: float, v_eps: float, sigma_asym: float) -> float:
-    """Regularised static map: tanh(w/v_eps) replaces sgn(w) in S(w)."""
+    """Regularised static map: tanh(w/v_eps) replaces sgn(w) in S(w); v_eps = 0: S(w) itself,
+    0 at w = 0 (at rest the exact sign is set-valued: ``static_friction_step`` decides)."""
+    if v_eps <= 0.0:
+        return steady_state(w, fc, fs, vs, shape, sigma, asym, sigma_asym)
     sg = smooth_sign(w, v_eps)
     return sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * (1.0 + sigma_asym * sg) * w
+
+
+@kernel
+def static_friction_step(a: float, k: float, hj: float, fc: float, fs: float, vs: float, shape: float,
+                         sigma: float, asym: float, sigma_asym: float):
+    """The exact static map over a step, taken at the velocity w1 the step ends with (backward
+    Euler): k w1 + hj S(w1) = a, with S's sign set-valued at rest. ``a``: k times the velocity
+    the step would end with without the friction; ``k`` >= 1 carries the dof's other linearly
+    implicit slopes; ``hj`` = h / J. Returns (w1, the friction torque).
+
+    The dof holds at rest while the drive a / hj lies within the break-away levels
+    [-(Fs - asym), Fs + asym], and the friction applies what stops it; otherwise it slides in
+    the drive's direction, where k w + hj S(w) - a changes sign between 0 and a / k (S's level
+    at rest is the break-away one): bisection, with Newton steps while they stay inside. The
+    Stribeck dip can give several roots; the one found is inside that bracket.
+    """
+    if hj <= 0.0:
+        return a / k, 0.0
+    if -hj * (fs - asym) <= a <= hj * (fs + asym):
+        return 0.0, a / hj
+    sg = 1.0 if a > 0.0 else -1.0
+    lo = 0.0
+    hi = a / k
+    if hi < lo:
+        lo, hi = hi, lo
+    slope = k + hj * sigma * (1.0 + sigma_asym * sg)
+    w = 0.5 * (lo + hi)
+    for _ in range(80):
+        level = stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape)
+        g = slope * w + hj * sg * level - a
+        if g * sg > 0.0:
+            if sg > 0.0:
+                hi = w
+            else:
+                lo = w
+        elif sg > 0.0:
+            lo = w
+        else:
+            hi = w
+        r = abs(w / vs)
+        e = r if shape == 1.0 else (r * r if shape == 2.0 else r ** shape)
+        # d level / dw on the sliding side: -(Fs - Fc) E shape r^(shape-1) sg / vs
+        dlevel = -(fs - fc) * math.exp(-e) * shape * e / r / vs * sg if r > 0.0 and e < 40.0 else 0.0
+        dg = slope + hj * sg * dlevel
+        nxt = w - g / dg if dg > 0.0 else 0.5 * (lo + hi)
+        if not lo < nxt < hi:
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - w) <= 1e-15 * abs(nxt):
+            w = nxt
+            break
+        w = nxt
+    return w, sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * (1.0 + sigma_asym * sg) * w
 
 
 @kernel
@@ -92,9 +147,10 @@ class StaticFriction:
     # Direction-dependent viscous slope: sigma (1 + sigma_asym sgn w), |sigma_asym| < 1 keeps it
     # dissipative. 0: symmetric, as the chapter's model (EMPS: slopes 155 / 231 N s/m, docs/datasets.md).
     sigma_asym: float = 0.0
-    # Sign regularisation [rad/s]. The plugin's torques are explicit, so the slope fc/v_eps
-    # on the rotor inertia J must keep fc h/(v_eps J) < 2: 1 rad/s suits fc = 0.08 N m,
-    # J = 5e-5 kg m^2, h = 0.5 ms (and is 0.3 % of the 325 rad/s idling speed).
+    # Sign regularisation [rad/s]; 0: the exact sign (the rotor sticks below break-away; stable
+    # at any step, ``static_friction_step``). A positive value is linearised on the rotor, so the
+    # slope fc/v_eps on the rotor inertia J must keep fc h/(v_eps J) < 2: 1 rad/s suits fc = 0.08
+    # N m, J = 5e-5 kg m^2, h = 0.5 ms (and is 0.3 % of the 325 rad/s idling speed).
     v_eps: float = 1.0
 
     def __post_init__(self) -> None:
@@ -106,7 +162,7 @@ class StaticFriction:
         lim = min(self.fc, self.fs)  # both directions keep non-negative friction levels
         check("asym", self.asym, -lim, lim)
         check("sigma_asym", self.sigma_asym, -1.0, 1.0, lo_open=True, hi_open=True)
-        check("v_eps", self.v_eps, 0.0, lo_open=True)
+        check("v_eps", self.v_eps, 0.0)
 
     @classmethod
     def coulomb(cls, fc: float, v_eps: float = 1.0) -> "StaticFriction":

@@ -1,5 +1,6 @@
-"""The output bearing's dry friction (``physics.load``), taken at the link velocity the step
-ends with: it sticks exactly, dissipates F_c times the path, and is stable at any F_c / J.
+"""Dry friction taken at the velocity the step ends with: it sticks exactly, dissipates F_c
+times the path, and is stable at any F_c / J. The output bearing (``physics.load``) always; the
+motor's static map with the exact sign (``StaticFriction(v_eps=0)``) as an option.
 
 A Coulomb pendulum is the property test: released from A1, it swings to the far side and stops
 at A2 where the gravity potential lost equals the bearing's work, m g l (cos A2 - cos A1) =
@@ -14,7 +15,9 @@ import pytest
 
 from mjjoint.assets.builder import ArmSpec
 from mjjoint.joint import JointParams
+from mjjoint.experiments.convergence import free_rotor
 from mjjoint.physics.load import LoadFriction
+from mjjoint.physics.stribeck import StaticFriction
 from mjjoint.physics.transmission import Transmission
 from mjjoint.sim import FULL, Simulator
 
@@ -107,3 +110,38 @@ def test_any_friction_level_is_stable_on_a_light_hub():
     trace, mgl = pendulum(5e-4, segments=4, seconds=2.0, fc=50.0)
     assert np.all(np.isfinite(trace.theta))
     assert np.abs(trace.theta - START).max() < 1e-3
+
+
+# ---- the motor's static map with the exact sign -----------------------------------------------
+def rotor_under(amplitude: float, v_eps: float, h: float = 5e-4, fc: float = 0.08, fs: float = 0.12):
+    """The shipped rotor, output cut free, under a 1 Hz sine of ``amplitude`` times Fs."""
+    t = np.arange(int(2 * RATE)) / RATE
+    joint = JointParams(friction=StaticFriction(fc=fc, fs=fs, v_eps=v_eps))
+    return free_rotor(h, joint, amplitude * fs * np.sin(2 * np.pi * t))
+
+
+def test_a_rotor_below_break_away_never_moves():
+    """0.8 Fs is above the Coulomb level but below break-away: the exact map holds the rotor;
+    the regularised one (tanh over 1 rad/s) lets it spin up."""
+    held = rotor_under(0.8, 0.0)
+    assert np.abs(held.qd).max() < 1e-12
+    # the friction takes the whole drive, as the last step showed it (the trace's row i is
+    # evaluated before the input of sample i acts)
+    assert np.abs(held.friction[1:] - held.u[:-1]).max() < 1e-12
+    assert np.abs(rotor_under(0.8, 1.0).qd).max() > 1.0
+
+
+def test_a_sliding_rotor_converges_at_first_order():
+    fine = rotor_under(1.25, 0.0, h=5e-6)
+    err = [np.sqrt(np.mean((rotor_under(1.25, 0.0, h=h).qd - fine.qd) ** 2)) / np.sqrt(np.mean(fine.qd ** 2))
+           for h in (5e-4, 2.5e-4)]
+    assert err[0] < 0.02 and err[1] < 0.7 * err[0], err
+
+
+def test_exact_map_is_stable_at_any_friction_level():
+    """Fc 25x the shipped rotor's: a regularised sign would need v_eps > 10 rad/s at 0.5 ms
+    (the drive stays inside the amplifier's 5 N m)."""
+    held = rotor_under(0.9, 0.0, fc=2.0, fs=3.0)
+    assert np.all(np.isfinite(held.qd)) and np.abs(held.qd).max() < 1e-12 * 3.0 * 5e-4 / 5e-5  # round-off of h Fs / J
+    slides = rotor_under(1.5, 0.0, fc=2.0, fs=3.0)
+    assert np.all(np.isfinite(slides.qd)) and np.abs(slides.qd).max() > 1.0
