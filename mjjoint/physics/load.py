@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from ..params import check
 from .jit import kernel
+from .roots import ITERATIONS, newton_in_bracket
 from .stribeck import smooth_sign
 from .term import Term
 
@@ -36,8 +37,8 @@ def bearing_step(v: float, hj: float, fc: float, viscous: float, v_eps: float) -
 
     With the exact sign (v_eps = 0) the bearing holds the dof at rest while |v| <= hj F_c (and
     applies v / hj, what stops it), else slides on: closed form. With a regularised sign the
-    root of the increasing w1 + hj F(w1) - v is bracketed by 0 and v / (1 + hj d_f): Newton,
-    bisecting when a step leaves the bracket. Either way the solution exists, is unique and never
+    root of the increasing w1 + hj F(w1) - v is bracketed by 0 and v / (1 + hj d_f): Newton
+    within the bracket (``roots``). Either way the solution exists, is unique and never
     reverses the motion, at any step and any F_c / J.
     """
     if hj <= 0.0:
@@ -52,21 +53,12 @@ def bearing_step(v: float, hj: float, fc: float, viscous: float, v_eps: float) -
     if hi < lo:
         lo, hi = hi, lo
     w = 0.5 * (lo + hi)
-    for _ in range(60):
+    for _ in range(ITERATIONS):
         sg = smooth_sign(w, v_eps)
         g = w + hj * (fc * sg + viscous * w) - v
-        if g > 0.0:
-            hi = w
-        else:
-            lo = w
-        slope = 1.0 + hj * (fc * (1.0 - sg * sg) / v_eps + viscous)
-        nxt = w - g / slope
-        if not lo < nxt < hi:
-            nxt = 0.5 * (lo + hi)
-        if abs(nxt - w) <= 1e-15 * abs(nxt):
-            w = nxt
+        w, lo, hi, done = newton_in_bracket(w, g, 1.0 + hj * (fc * (1.0 - sg * sg) / v_eps + viscous), lo, hi)
+        if done:
             break
-        w = nxt
     return fc * smooth_sign(w, v_eps) + viscous * w
 
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from ..params import check
 from .jit import kernel
+from .roots import ITERATIONS, newton_in_bracket
 
 
 @kernel
@@ -69,9 +70,9 @@ def static_friction_step(a: float, k: float, hj: float, fc: float, fs: float, vs
 
     The dof holds at rest while the drive a / hj lies within the break-away levels
     [-(Fs - asym), Fs + asym], and the friction applies what stops it; otherwise it slides in
-    the drive's direction, where k w + hj S(w) - a changes sign between 0 and a / k (S's level
-    at rest is the break-away one): bisection, with Newton steps while they stay inside. The
-    Stribeck dip can give several roots; the one found is inside that bracket.
+    the drive's direction, where k w + hj S(w) - a, increasing but for the Stribeck dip, changes
+    sign between 0 and a / k (S's level at rest is the break-away one): Newton within that
+    bracket (``roots``). The dip can give several roots; the one found is inside the bracket.
     """
     if hj <= 0.0:
         return a / k, 0.0
@@ -84,30 +85,15 @@ def static_friction_step(a: float, k: float, hj: float, fc: float, fs: float, vs
         lo, hi = hi, lo
     slope = k + hj * sigma * (1.0 + sigma_asym * sg)
     w = 0.5 * (lo + hi)
-    for _ in range(80):
-        level = stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape)
-        g = slope * w + hj * sg * level - a
-        if g * sg > 0.0:
-            if sg > 0.0:
-                hi = w
-            else:
-                lo = w
-        elif sg > 0.0:
-            lo = w
-        else:
-            hi = w
+    for _ in range(ITERATIONS):
+        g = slope * w + hj * sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) - a
         r = abs(w / vs)
         e = r if shape == 1.0 else (r * r if shape == 2.0 else r ** shape)
         # d level / dw on the sliding side: -(Fs - Fc) E shape r^(shape-1) sg / vs
         dlevel = -(fs - fc) * math.exp(-e) * shape * e / r / vs * sg if r > 0.0 and e < 40.0 else 0.0
-        dg = slope + hj * sg * dlevel
-        nxt = w - g / dg if dg > 0.0 else 0.5 * (lo + hi)
-        if not lo < nxt < hi:
-            nxt = 0.5 * (lo + hi)
-        if abs(nxt - w) <= 1e-15 * abs(nxt):
-            w = nxt
+        w, lo, hi, done = newton_in_bracket(w, g, slope + hj * sg * dlevel, lo, hi)
+        if done:
             break
-        w = nxt
     return w, sg * stribeck_level(w, fc + asym * sg, fs + asym * sg, vs, shape) + sigma * (1.0 + sigma_asym * sg) * w
 
 
