@@ -574,6 +574,15 @@ class Predictor:
         return lead_samples(m.qd, REVERSAL_BAND * m.q_noise * m.rate, self.starts, m.joins,
                             int(round(self.design.lead * m.rate)))
 
+    @cached_property
+    def _held_input(self) -> tuple[np.ndarray, np.ndarray]:
+        """(knots, integral of the zero-order-held input at them) (``_controls``): computed once,
+        not per call (a flexible lead-in makes one call per sample)."""
+        m = self.m
+        period = 1.0 / m.rate
+        cum = np.concatenate([[0.0], np.cumsum(m.u) * period])
+        return m.t[0] + period * np.arange(len(cum)), cum
+
     def _controls(self, model, i0: np.ndarray, n: int, delay: float, ji) -> np.ndarray:
         """Per-step controls of ``n``-sample runs from samples ``i0``: the zero-order-held input
         averaged over [t - d, t - d + h].
@@ -585,9 +594,7 @@ class Predictor:
         sub = self._substeps(model)
         h = model.opt.timestep
         m = self.m
-        period = 1.0 / m.rate
-        cum = np.concatenate([[0.0], np.cumsum(m.u) * period])  # integral of the held input
-        knots = m.t[0] + period * np.arange(len(cum))
+        knots, cum = self._held_input
         tk = m.t[i0][:, None] + h * np.arange((n - 1) * sub)[None, :] - delay
         # A delayed window at a join would otherwise take the previous recording's input.
         first = np.array([a for a, _ in m.segments])
