@@ -86,3 +86,31 @@ def test_the_two_stage_screen_finds_the_candidate_finishing_every_screen_finds(p
     assert two[best][0] == every[best][0] and two[best][1].structure.values == every[best][1].structure.values
     gain = base.cost_test - every[best][0]
     assert all(base.cost_test - every[k][0] < loop.TIE_SHARE * gain for k in rest)
+
+
+def test_a_jacobian_at_a_stable_point_skips_the_columns_checks_and_equals_the_checked_one(predictor, monkeypatch):
+    """The finite-difference columns around a point whose model is stable are not checked
+    (``Predictor.predict(assume_stable=True)``); the Jacobian is the checked one bit for bit."""
+    from mjjoint.identify import fit as fitmod
+    from mjjoint.identify import windows as winmod
+
+    start = Structure.create((*BASE, "input_offset"), DriveSpec(), 1.0)
+    names = [p.name for p in start.params]
+    lo, hi = start.bounds(names)
+    x = start.vector(names)[:, None]
+    checked = []
+    real = winmod._stable
+    monkeypatch.setattr(winmod, "_stable", lambda model: checked.append(model) or real(model))
+
+    def jacobian(trust: bool) -> np.ndarray:
+        obj = fitmod.Objective(predictor, start, names, predictor.train, lo, hi, fitmod.STEP_SE)
+        if not trust:
+            obj._stable_at = lambda x: False
+        r = obj.residual(x)
+        checked.clear()
+        obj.jacobian(x, r)
+        return obj.jac_at[2], len(checked)
+    trusted, n_trusted = jacobian(True)
+    full, n_full = jacobian(False)
+    assert np.array_equal(trusted, full)
+    assert n_full == len(names) and n_trusted == 1  # the point itself, from the memo

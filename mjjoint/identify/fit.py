@@ -192,6 +192,12 @@ class Objective:
         self.seen: dict = {}
         self.accepted: dict = {}  # the last Jacobian point's predictions (``seen`` when it was taken)
         self._residual = residual_matrix(predictor.predict, structure, names, windows, predictor, self.seen, scale)
+        # The Jacobian's columns, 1e-8 from a point whose model was found stable, are not checked
+        # again (``Predictor.predict(assume_stable=True)``).
+        self._fd_residual = residual_matrix(lambda structs, w: predictor.predict(structs, w, assume_stable=True),
+                                            structure, names, windows, predictor, None, scale)
+        self._stable_at = (lambda x: False) if structure is None else (
+            lambda x: predictor.stable(structure.from_vector(x, names)))
         self.bounds = [lo[:, None], hi[:, None]]
         self.lo, self.hi, self.tol_se = lo, hi, tol_se
         self.jac_at: tuple | None = None  # (x, r, jac) of the last Jacobian
@@ -208,7 +214,8 @@ class Objective:
 
     def jacobian(self, x: np.ndarray, r: np.ndarray) -> np.ndarray:
         self.accepted = dict(self.seen)
-        jac, _ = minimize.jacobian_fd(self._residual, x, r, EPS, 0, self.bounds)
+        jac, _ = minimize.jacobian_fd(self._fd_residual if self._stable_at(x[:, 0]) else self._residual, x, r, EPS, 0,
+                                      self.bounds)
         self.jac_at = (x[:, 0].copy(), r[:, 0].copy(), jac)
         rr = float(r[:, 0] @ r[:, 0])
         self.m = r.shape[0]
