@@ -9,7 +9,9 @@ Each round:
    (only the rank test fails), once more with every parameter free, from and against the
    current structure refitted with every parameter free, the rank test at half the level
    (stand-ins for a missing effect need not sit at its site: a delay's phase lag in the
-   load's viscous coefficient; docs/diagnosis.md);
+   load's viscous coefficient; docs/diagnosis.md). Screens run in two stages (CONTINUE_SHARE):
+   every candidate on the coarse subset of the training windows, then the few that gain most
+   on the model itself fitted the same way on all of them, each to the result a whole screen gives;
 4. the candidate that lowers the HELD-OUT cost most is named if it passes both tests below;
    if none does and a located condition is significant, the generic forms that condition points
    to (``identify.generic``: the open vocabulary, named by site and form) are screened and

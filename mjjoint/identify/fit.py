@@ -6,9 +6,13 @@ residual is vectorised over parameter vectors: every finite-difference Jacobian 
 are optimised in log coordinates where they span decades. The LM runs first on a seeded
 quarter of the windows, then on all of them, and stops when its Gauss-Newton step is a tenth
 of the parameters' standard errors, or when a trial step fails within half of one (constants
-below). 95 % intervals come from the Jacobian at the optimum, with the windows as the
-independent units (``intervals``: a window's residuals share its start-state error); a parameter
-whose interval is wider than its value, or that sits on a bound, is flagged.
+below). A fit may stop between the two phases (``subset_only``: the diagnosis screens every
+candidate so) and be finished later (``finish``) to exactly the whole fit's result. The
+Jacobian's columns around a point whose model passed the stability check are not checked
+again (``Predictor.predict(assume_stable=True)``). 95 % intervals come from the Jacobian at
+the optimum, with the windows as the independent units (``intervals``: a window's residuals
+share its start-state error); a parameter whose interval is wider than its value, or that sits
+on a bound, is flagged.
 
 Robust cost over windows (``robust=True``; the diagnosis's refits and final estimate, docs/diagnosis.md):
 the fitted objective is sum_i s log(1 + c_i / s) over the windows' mean squared residuals c_i
