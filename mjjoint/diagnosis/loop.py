@@ -317,8 +317,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         if generic:
             say(f"  no catalogued effect explains the located residual: screening the generic forms it "
                 f"points to ({', '.join(generic)})")
-            g_ref, g_screened, g_rest = _screen(predictor, current, where, dataclasses.replace(options, candidates=generic),
-                                        say, clock, unstable)
+            g_ref, g_screened, g_rest = _screen(predictor, current, where,
+                                                dataclasses.replace(options, candidates=generic), say, clock, unstable)
             g_choice = _decide(predictor, g_ref, g_screened, options, floor_cost)
             if not g_choice.failed:
                 choice, ref, screened, rest, screen = g_choice, g_ref, g_screened, g_rest, "generic form"
@@ -475,11 +475,11 @@ def _robust(predictor: Predictor, result: FitResult, options: DiagnoseOptions, p
 
 
 # Two-stage screening (``_screen``): every candidate is fitted on the coarse subset of the
-# training windows (the first LM phase of every fit); of those whose subset fit predicts the
-# held-out windows better than the model itself fitted the same way (the null), the best one,
-# and the others whose gain over the null is at least CONTINUE_SHARE of the best one's, at most
-# CONTINUE_MAX, go on over all training windows. Finished, a screen is the whole fit's result bit
-# for bit (``identify.fit.finish``), so the acceptance tests see what a full screen gives; the
+# training windows (the first LM phase of every fit) and scored on the held-out windows. The
+# best one goes on over all training windows, and so do the others that predict better than the
+# model itself fitted the same way (the null) by at least CONTINUE_SHARE of what the best gains
+# on it, at most CONTINUE_MAX in all. Finished, a screen is the whole fit's result bit for bit
+# (``identify.fit.finish``), so the acceptance tests see what a full screen gives; the
 # candidates left on the subset had no chance to be named or to tie with the one that is.
 CONTINUE_SHARE = 0.5
 CONTINUE_MAX = 3
