@@ -14,7 +14,8 @@
     one whose truth has backlash the fitted model lacks. Both results are also scored on
     independent recordings of the same truth (other excitation and noise seeds, three times
     as long): the 8 held-out windows of the fitted recording rank near-equal fits by chance;
-(d) the full diagnosis of one concealed-effect case (mjjoint.benchmark): rollouts, wall time;
+(d) the full diagnosis of one concealed-effect case (mjjoint.benchmark): rollouts, wall time and
+    the process's CPU time (all threads; what a loaded machine moves least);
 (e) --memory: peak RSS of a fit plus one diagnosis round on a 1- and a 10-minute recording
     at 1 kHz, each in its own process (ru_maxrss is a per-process peak).
 
@@ -398,10 +399,15 @@ def versus_sysid_both(truth: Structure, start: Structure, predictor: Predictor, 
 def diagnosis(case: str, duration: float, sizes: Sizes) -> dict:
     say(f"(d) diagnosis of the concealed {case} case, {duration:g} s recording; {load()}")
     with tempfile.TemporaryDirectory() as tmp:
+        # CPU time of the whole process (all rollout threads), recording and scoring included: on
+        # a machine shared with other jobs it moves far less than the wall time.
+        cpu = time.process_time()
         score = run_case(case, CASE_SEED, Path(tmp), duration, sizes.diag_options, progress=lambda m: say(f"    {m}"))
-    say(f"  {score.rollouts:.0f} full-length rollouts, {score.seconds:.1f} s; named {score.named}, false additions "
-        f"{score.false_additions or 'none'}, {score.signal} NRMSE {score.nrmse_before:.3f} -> {score.nrmse_after:.3f}")
-    return {"case": case, "seconds_recorded": duration, "rollouts": score.rollouts, "wall_s": score.seconds,
+        cpu = time.process_time() - cpu
+    say(f"  {score.rollouts:.0f} full-length rollouts, {score.seconds:.1f} s wall ({cpu:.1f} s CPU); named "
+        f"{score.named}, false additions {score.false_additions or 'none'}, {score.signal} NRMSE "
+        f"{score.nrmse_before:.3f} -> {score.nrmse_after:.3f}")
+    return {"case": case, "seconds_recorded": duration, "rollouts": score.rollouts, "wall_s": score.seconds, "cpu_s": cpu,
             "named": score.named, "false_additions": score.false_additions, "nrmse_before": score.nrmse_before,
             "nrmse_after": score.nrmse_after}
 

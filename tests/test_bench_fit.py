@@ -59,5 +59,5 @@ def test_quick_run_reports_sane_numbers(report):
         assert sysid["reason"]
 
     diag = r["diagnosis"]
-    assert diag["rollouts"] > 0 and diag["wall_s"] > 0
+    assert diag["rollouts"] > 0 and diag["wall_s"] > 0 and diag["cpu_s"] > 0
     assert math.isfinite(diag["nrmse_before"]) and math.isfinite(diag["nrmse_after"])

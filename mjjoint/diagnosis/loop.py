@@ -9,7 +9,9 @@ Each round:
    (only the rank test fails), once more with every parameter free, from and against the
    current structure refitted with every parameter free, the rank test at half the level
    (stand-ins for a missing effect need not sit at its site: a delay's phase lag in the
-   load's viscous coefficient; docs/diagnosis.md);
+   load's viscous coefficient; docs/diagnosis.md). Screens run in two stages (CONTINUE_SHARE):
+   every candidate on the coarse subset of the training windows, then the few that gain most
+   on the model itself fitted the same way on all of them, each to the result a whole screen gives;
 4. the candidate that lowers the HELD-OUT cost most is named if it passes both tests below;
    if none does and a located condition is significant, the generic forms that condition points
    to (``identify.generic``: the open vocabulary, named by site and form) are screened and
@@ -81,7 +83,7 @@ from scipy.stats import wilcoxon
 
 from ..assets.stability import check_model_stability
 from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, plant_effects
-from ..identify.fit import FitResult, fit, window_costs
+from ..identify.fit import FitResult, finish, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .clock import ScreenClock
@@ -297,14 +299,14 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         where = residual_location(predictor, current.structure)
         clock.round = k
         floor_cost = noise_floor(predictor, current.structure).cost()
-        ref, screened = _screen(predictor, current, where, options, say, clock, unstable)
+        ref, screened, rest = _screen(predictor, current, where, options, say, clock, unstable)
         if not screened:
             break
         choice, screen = _decide(predictor, ref, screened, options, floor_cost), "stand-ins held"
         if choice.only_inconsistent and options.free_all:
             say(f"  best candidate {choice.best} fails only the rank test ({choice.failed[0]}); screening "
                 "again with every parameter free, from the model refitted")
-            ref, screened = _screen(predictor, current, where, options, say, clock, unstable, free_all=True)
+            ref, screened, rest = _screen(predictor, current, where, options, say, clock, unstable, free_all=True)
             if ref.cost_test < current.cost_test:  # the same structure, fitted further
                 current = history[-1] = ref
                 initial = initial if steps else ref
@@ -315,13 +317,13 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         if generic:
             say(f"  no catalogued effect explains the located residual: screening the generic forms it "
                 f"points to ({', '.join(generic)})")
-            g_ref, g_screened = _screen(predictor, current, where, dataclasses.replace(options, candidates=generic),
-                                        say, clock, unstable)
+            g_ref, g_screened, g_rest = _screen(predictor, current, where,
+                                                dataclasses.replace(options, candidates=generic), say, clock, unstable)
             g_choice = _decide(predictor, g_ref, g_screened, options, floor_cost)
             if not g_choice.failed:
-                choice, ref, screened, screen = g_choice, g_ref, g_screened, "generic form"
+                choice, ref, screened, rest, screen = g_choice, g_ref, g_screened, g_rest, "generic form"
         best, cand, gain = choice.best, choice.cand, choice.gain
-        unresolved = unresolved_screens(screened, ref.cost_test)
+        unresolved = unresolved_screens({**{k: (c, None) for k, c in rest.items()}, **screened}, ref.cost_test)
         if choice.failed:
             rejected = (f"the best candidate, {best}, lowers the held-out cost by {100 * gain:.1f} % "
                         f"but fails: {', '.join(choice.failed)}")
@@ -349,7 +351,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             parameters={p.name: refit.structure.values[p.name] for e in parts(best) for p in EFFECTS[e].params},
             fit_before=current.nrmse_test, fit_after=refit.nrmse_test,
             gain=1.0 - refit.cost_test / current.cost_test,
-            screened={k: v[0] for k, v in screened.items()}, alternatives=alternatives,
+            screened={**rest, **{k: v[0] for k, v in screened.items()}}, alternatives=alternatives,
             consistency=consistency, screen=screen))
         current = refit
         history.append(current)
@@ -472,10 +474,23 @@ def _robust(predictor: Predictor, result: FitResult, options: DiagnoseOptions, p
     return robust, robust.cost_test < result.cost_test
 
 
+# Two-stage screening (``_screen``): every candidate is fitted on the coarse subset of the
+# training windows (the first LM phase of every fit) and scored on the held-out windows. The
+# best one goes on over all training windows, and so do the others that predict better than the
+# model itself fitted the same way (the null) by at least CONTINUE_SHARE of what the best gains
+# on it, at most CONTINUE_MAX in all. Finished, a screen is the whole fit's result bit for bit
+# (``identify.fit.finish``), so the acceptance tests see what a full screen gives; the
+# candidates left on the subset had no chance to be named or to tie with the one that is.
+CONTINUE_SHARE = 0.5
+CONTINUE_MAX = 3
+
+
 def _screen(predictor: Predictor, current: FitResult, where: dict, options: DiagnoseOptions, say,
             clock: ScreenClock, unstable: dict[str, str], free_all: bool = False
-            ) -> tuple[FitResult, dict[str, tuple[float, FitResult]]]:
-    """(the fit candidates are held against, {effect: (held-out cost, fit)}) of one screening.
+            ) -> tuple[FitResult, dict[str, tuple[float, FitResult]], dict[str, float]]:
+    """(the fit candidates are held against, {effect: (held-out cost, fit)} of the screens
+    finished over all training windows, {effect: held-out cost} of those left on the subset) of
+    one screening.
 
     Held stand-ins (default): each candidate frees ``screened_params`` and is held against the
     current fit. ``free_all``: the current structure is first refitted with every parameter
@@ -483,16 +498,23 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     flexible candidate with the rest of its descent), and each candidate frees every parameter
     from there and is held against that refit (module doc). A screen whose prediction is
     unstable is screened again at half the timestep, and why it was goes to ``unstable``.
+    Screens run in two stages (CONTINUE_SHARE); a screen left on the subset reports the held-out
+    cost of the reference scaled by its subset cost over the null's.
     """
     ref = current
     if free_all:
         ref = fit(predictor, current.structure, max_iter=options.fit_iter)
         say(f"  reference, the model refitted: held-out cost {current.cost_test:.4g} -> {ref.cost_test:.4g}")
-    screened: dict[str, tuple[float, FitResult]] = {}
     trials = [(name, values, settings) for name in candidates_for(ref.structure, options.candidates)
               for values, settings in _candidate_variants(parts(name)[-1], where)]
     say(f"round {clock.round} of {clock.rounds}: screening {len(trials)} candidate fits"
-        + (" with every parameter free" if free_all else ""))
+        + (" with every parameter free" if free_all else "") + ", first on a subset of the windows")
+    if not trials:
+        return ref, {}, {}
+    base_names = None if free_all else [p.name for p in base_params(ref.structure.nominal)]
+    null = fit(predictor, ref.structure, base_names, max_iter=options.screen_iter, subset_only=True)
+    firsts: list[FitResult] = []
+    starts: list[Structure] = []
     for i, (name, values, settings) in enumerate(trials, 1):
         start = time.perf_counter()
         *needed, effect = parts(name)
@@ -501,18 +523,51 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
             trial = trial.with_effect(e)
         trial = trial.with_effect(effect, values, settings)
         freed = None if free_all else screened_params(name, ref.structure)
-        res = fit(predictor, trial, freed, max_iter=options.screen_iter)
+        res = fit(predictor, trial, freed, max_iter=options.screen_iter, subset_only=True)
         if not res.cost_test < UNSTABLE_COST:
             unstable[name] = _instability(trial)
             say(f"  screened {name}: unstable prediction ({unstable[name]}); again at half the timestep")
-            res = fit(predictor, _halved_step(trial), freed, max_iter=options.screen_iter)
+            res = fit(predictor, _halved_step(trial), freed, max_iter=options.screen_iter, subset_only=True)
         clock.record(time.perf_counter() - start)
+        firsts.append(res)
+        starts.append(trial)
+        label = f"{name} {settings}" if settings else name
+        say(f"  screened {label} on the subset: held-out cost {null.cost_test:.4g} -> {res.cost_test:.4g} "
+            f"({clock.status(i, len(trials))})")
+    go_on = continued([r.cost_test for r in firsts], null.cost_test, [t[0] for t in trials])
+    screened: dict[str, tuple[float, FitResult]] = {}
+    for i in go_on:
+        name, _, settings = trials[i]
+        res = finish(predictor, firsts[i])
+        if not res.cost_test < UNSTABLE_COST and name not in unstable:
+            unstable[name] = _instability(starts[i])
+            res = fit(predictor, _halved_step(starts[i]), None if free_all else
+                      screened_params(name, ref.structure), max_iter=options.screen_iter)
         if name not in screened or res.cost_test < screened[name][0]:
             screened[name] = (res.cost_test, res)
         label = f"{name} {settings}" if settings else name
-        say(f"  screened {label}: held-out cost {ref.cost_test:.4g} -> {res.cost_test:.4g} "
-            f"({clock.status(i, len(trials))})")
-    return ref, screened
+        say(f"  screened {label} on all windows: held-out cost {ref.cost_test:.4g} -> {res.cost_test:.4g}")
+    rest: dict[str, float] = {}
+    for (name, _, _), res in zip(trials, firsts):
+        if name not in screened:
+            cost = ref.cost_test * res.cost_test / null.cost_test if null.cost_test > 0 else res.cost_test
+            rest[name] = min(rest.get(name, np.inf), cost)
+    return ref, screened, rest
+
+
+def continued(costs: list[float], null: float, names: list[str]) -> list[int]:
+    """Which subset screens (held-out ``costs``, against the ``null``'s) go on over all windows
+    (CONTINUE_SHARE): the best, and those that gain on the null at least CONTINUE_SHARE of what the
+    best gains, at most CONTINUE_MAX; with each bundle the prerequisite screened alone, which
+    ``_decide`` prefers when it passes."""
+    order = sorted(range(len(costs)), key=lambda i: costs[i] if np.isfinite(costs[i]) else np.inf)
+    gains = [null - c if np.isfinite(c) else -np.inf for c in costs]
+    best = gains[order[0]]
+    keep = [order[0]] + [i for i in order[1:CONTINUE_MAX] if gains[i] > 0 and gains[i] >= CONTINUE_SHARE * best]
+    for i in list(keep):
+        alone = BUNDLE.join(parts(names[i])[:-1])
+        keep += [j for j, n in enumerate(names) if alone and n == alone and j not in keep]
+    return sorted(keep)
 
 
 UNSTABLE_COST = 1e5  # a held-out cost this high holds predictions that diverged (identify.fit._BAD)

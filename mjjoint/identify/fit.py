@@ -6,9 +6,13 @@ residual is vectorised over parameter vectors: every finite-difference Jacobian 
 are optimised in log coordinates where they span decades. The LM runs first on a seeded
 quarter of the windows, then on all of them, and stops when its Gauss-Newton step is a tenth
 of the parameters' standard errors, or when a trial step fails within half of one (constants
-below). 95 % intervals come from the Jacobian at the optimum, with the windows as the
-independent units (``intervals``: a window's residuals share its start-state error); a parameter
-whose interval is wider than its value, or that sits on a bound, is flagged.
+below). A fit may stop between the two phases (``subset_only``: the diagnosis screens every
+candidate so) and be finished later (``finish``) to exactly the whole fit's result. The
+Jacobian's columns around a point whose model passed the stability check are not checked
+again (``Predictor.predict(assume_stable=True)``). 95 % intervals come from the Jacobian at
+the optimum, with the windows as the independent units (``intervals``: a window's residuals
+share its start-state error); a parameter whose interval is wider than its value, or that sits
+on a bound, is flagged.
 
 Robust cost over windows (``robust=True``; the diagnosis's refits and final estimate, docs/diagnosis.md):
 the fitted objective is sum_i s log(1 + c_i / s) over the windows' mean squared residuals c_i
@@ -101,6 +105,9 @@ class FitResult:
     coarse_iterations: int = 0  # of ``iterations``, those on the window subset (COARSE_SHARE)
     on_bound: tuple[str, ...] = ()  # fitted parameters on a bound (intervals.near_bound): stand-ins
     starts: int = 1  # fits run from different starting points (``restarts``), the best kept
+    # Set on a fit stopped after its subset phase (``fit(subset_only=True)``): where ``finish``
+    # goes on. Such a result holds the held-out cost and NRMSE only (train: NaN, {}).
+    partial: "_Partial | None" = field(default=None, repr=False, compare=False)
 
     def as_dict(self) -> dict:
         return {"structure": self.structure.describe(), "cost_train": self.cost_train,
@@ -189,6 +196,12 @@ class Objective:
         self.seen: dict = {}
         self.accepted: dict = {}  # the last Jacobian point's predictions (``seen`` when it was taken)
         self._residual = residual_matrix(predictor.predict, structure, names, windows, predictor, self.seen, scale)
+        # The Jacobian's columns, 1e-8 from a point whose model was found stable, are not checked
+        # again (``Predictor.predict(assume_stable=True)``).
+        self._fd_residual = residual_matrix(lambda structs, w: predictor.predict(structs, w, assume_stable=True),
+                                            structure, names, windows, predictor, None, scale)
+        self._stable_at = (lambda x: False) if structure is None else (
+            lambda x: predictor.stable(structure.from_vector(x, names)))
         self.bounds = [lo[:, None], hi[:, None]]
         self.lo, self.hi, self.tol_se = lo, hi, tol_se
         self.jac_at: tuple | None = None  # (x, r, jac) of the last Jacobian
@@ -205,7 +218,8 @@ class Objective:
 
     def jacobian(self, x: np.ndarray, r: np.ndarray) -> np.ndarray:
         self.accepted = dict(self.seen)
-        jac, _ = minimize.jacobian_fd(self._residual, x, r, EPS, 0, self.bounds)
+        jac, _ = minimize.jacobian_fd(self._fd_residual if self._stable_at(x[:, 0]) else self._residual, x, r, EPS, 0,
+                                      self.bounds)
         self.jac_at = (x[:, 0].copy(), r[:, 0].copy(), jac)
         rr = float(r[:, 0] @ r[:, 0])
         self.m = r.shape[0]
@@ -271,7 +285,8 @@ def _lm(obj: Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndar
 
 
 def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int = 25,
-        windows: np.ndarray | None = None, progress=None, robust: bool = False, restarts: int = 0) -> FitResult:
+        windows: np.ndarray | None = None, progress=None, robust: bool = False, restarts: int = 0,
+        subset_only: bool = False) -> FitResult:
     """Least-squares fit of the parameters ``names`` (default: all) of ``structure``; with
     ``robust``, under the Cauchy loss over windows (module doc).
 
@@ -279,7 +294,16 @@ def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int
     above FAR_ABOVE times the noise floor (``Predictor.noise_floor``) is run again from
     ``restart_points`` (the recording's initial values, then seeded random starts) and the
     lowest training cost is kept.
+
+    With ``subset_only``, the fit stops after its first LM phase (the seeded COARSE_SHARE of
+    the windows) and returns that point scored on the held-out windows only (``partial`` set);
+    ``finish`` takes it on to exactly the result the whole fit gives. Where the windows are too
+    few for two phases, the whole fit is run.
     """
+    if subset_only:
+        if restarts:
+            raise ValueError("fit: subset_only and restarts cannot be combined")
+        return _fit_once(predictor, structure, names, max_iter, windows, progress, robust, subset_only=True)
     result = _fit_once(predictor, structure, names, max_iter, windows, progress, robust)
     if restarts <= 0 or not (result.on_bound or result.cost_train > FAR_ABOVE * predictor.noise_floor):
         return result
@@ -313,15 +337,30 @@ def restart_points(structure: Structure, names, count: int, seed: int) -> list[S
     return points
 
 
+@dataclass
+class _Partial:
+    """A fit between its two LM phases (``fit(subset_only=True)``): what ``finish`` needs."""
+
+    structure: Structure
+    names: list[str]
+    windows: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    x: np.ndarray
+    done: int
+    max_iter: int
+    robust: bool
+
+
 def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, windows, progress,
-              robust: bool) -> FitResult:
+              robust: bool, subset_only: bool = False) -> FitResult:
     """One fit from the structure's values (``fit``).
 
     Two LM phases: on a seeded quarter of the windows until the step is within COARSE_SE of
     that subset's standard errors, then on all windows until it is within STEP_SE of theirs
     (each LM run at most ``max_iter`` iterations; the second repeated while the loss scale
     falls, SCALE_ROUNDS). ``progress(iteration, cost)`` gets the mean loss per residual over
-    the windows of the phase.
+    the windows of the phase. ``subset_only``: stop between the phases (``fit``).
     """
     start = time.perf_counter()
     roll0 = predictor.rollouts
@@ -332,22 +371,52 @@ def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, 
     lo, hi = structure.bounds(names)
     x = np.clip(structure.vector(names), lo, hi)
     done = 0
-
-    def scale_at(x, w, obj=None):  # the loss scale at x: median window cost (None: least squares)
-        if not robust:
-            return None
-        return cauchy_scale(window_costs(predictor, structure.from_vector(x, names), w,
-                                         None if obj is None else obj.prediction(x)))
     subset = coarse_windows(windows, predictor.design.seed)
     if subset is not None:
-        coarse = Objective(predictor, structure, names, subset, lo, hi, COARSE_SE, scale_at(x, subset))
+        scale = _scale_at(predictor, structure, names, robust, x, subset)
+        coarse = Objective(predictor, structure, names, subset, lo, hi, COARSE_SE, scale)
         x, done = _lm(coarse, x, max_iter, _reporter(progress, 0))
-    coarse_done, scale = done, scale_at(x, windows)
+    state = _Partial(structure, names, windows, lo, hi, x, done, max_iter, robust)
+    if subset_only and subset is not None:
+        best = structure.from_vector(x, names)
+        (pred,) = predictor.predict([best], predictor.test)
+        cost_test = float(np.mean(np.nan_to_num(predictor.residuals(pred, predictor.test), nan=_BAD) ** 2))
+        return FitResult(best, float("nan"), cost_test, {}, predictor.nrmse(pred, predictor.test),
+                         iterations=done, rollouts=predictor.rollouts - roll0,
+                         seconds=time.perf_counter() - start, coarse_iterations=done, partial=state)
+    return _second_phase(predictor, state, progress, start, roll0)
+
+
+def finish(predictor: Predictor, result: FitResult, progress=None) -> FitResult:
+    """A fit stopped after its subset phase (``fit(subset_only=True)``) taken on over all its
+    windows: the result the whole fit gives, its time and rollouts counting both parts."""
+    if result.partial is None:
+        return result
+    start, roll0 = time.perf_counter(), predictor.rollouts
+    out = _second_phase(predictor, result.partial, progress, start, roll0)
+    out.seconds += result.seconds
+    out.rollouts += result.rollouts
+    return out
+
+
+def _scale_at(predictor: Predictor, structure: Structure, names, robust: bool, x, w, obj=None):
+    """The loss scale at x: median window cost over ``w`` (None: least squares)."""
+    if not robust:
+        return None
+    return cauchy_scale(window_costs(predictor, structure.from_vector(x, names), w,
+                                     None if obj is None else obj.prediction(x)))
+
+
+def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, roll0: float) -> FitResult:
+    """The LM on all of the fit's windows from the subset phase's end (``_fit_once``), then the
+    intervals and the train/held-out scores."""
+    structure, names, windows, lo, hi, x, done = st.structure, st.names, st.windows, st.lo, st.hi, st.x, st.done
+    coarse_done, scale = done, _scale_at(predictor, structure, names, st.robust, x, windows)
     for _ in range(SCALE_ROUNDS):
         obj = Objective(predictor, structure, names, windows, lo, hi, STEP_SE, scale)
-        x, k = _lm(obj, x, max_iter, _reporter(progress, done))
+        x, k = _lm(obj, x, st.max_iter, _reporter(progress, done))
         done += k
-        new = None if scale is None else scale_at(x, windows, obj)
+        new = None if scale is None else _scale_at(predictor, structure, names, st.robust, x, windows, obj)
         if new is None or new > scale / 2:
             break
         scale = new

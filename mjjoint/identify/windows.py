@@ -312,6 +312,10 @@ class Predictor:
         """The compiled model a structure is simulated on (memoised): the single joint's."""
         return _compile(*structure.model_params())
 
+    def stable(self, structure: Structure) -> bool:
+        """Whether the structure's compiled model passes the stability check (memoised)."""
+        return _stable(self._model(structure))
+
     def _joint(self, model):
         """The joint the recording measures, in ``model``."""
         return joint_indices(model)[0]
@@ -334,10 +338,15 @@ class Predictor:
                      and (self.fit_signals is None or s in self.fit_signals))
 
     # ---- prediction --------------------------------------------------------------------
-    def predict(self, structures: list[Structure], windows: np.ndarray | None = None) -> list[dict[str, np.ndarray]]:
-        """Predicted q, theta, delta, tau (windows x samples) for each structure."""
+    def predict(self, structures: list[Structure], windows: np.ndarray | None = None,
+                assume_stable: bool = False) -> list[dict[str, np.ndarray]]:
+        """Predicted q, theta, delta, tau (windows x samples) for each structure.
+
+        ``assume_stable``: the caller vouches that the structures are stable (a finite-difference
+        Jacobian's models, each 1e-8 from a point that was checked), so their compiled models are
+        not checked (``_stable``: a few ms each, as much as a short window batch's rollout)."""
         windows = np.arange(len(self.starts)) if windows is None else np.asarray(windows)
-        stable = [_stable(self._model(s)) for s in structures]
+        stable = [True] * len(structures) if assume_stable else [self.stable(s) for s in structures]
         if not all(stable):
             # Explicitly unstable parameters are not simulated: they score as NaN (worst).
             good = [s for s, ok in zip(structures, stable) if ok]
@@ -356,8 +365,10 @@ class Predictor:
             register_model(mod)  # a memoised model's registry row may have been recycled
         jis = [self._joint(mod) for mod in models]  # parsed once per model and call
         i0 = self.starts[windows]
-        x0 = np.concatenate([self._start_states(mod, ji, d, windows, k)
-                             for mod, d, ji, k in zip(models, delays, jis, skews)])
+        lead_ins: list = []  # the flexible lead-ins of all models, run together (``_flexible_start``)
+        x0 = [self._start_states(mod, ji, d, windows, k, lead_ins) for mod, d, ji, k in zip(models, delays, jis, skews)]
+        self._flexible_start(lead_ins)
+        x0 = np.concatenate(x0)
         ctrl = np.concatenate([self._controls(mod, i0, self.nwin_samples, d, ji)
                                for mod, d, ji in zip(models, delays, jis)])
         batch_models = [mod for mod in models for _ in windows]
@@ -490,7 +501,8 @@ class Predictor:
         return {"q": m.q[i], "w": m.qd[i], "theta": m.theta[i] if link else zero,
                 "wtheta": m.thetad[i] if link else zero, "delta": delta}
 
-    def _start_states(self, model, ji, delay: float, windows: np.ndarray, skew: float = 0.0) -> np.ndarray:
+    def _start_states(self, model, ji, delay: float, windows: np.ndarray, skew: float = 0.0,
+                      lead_ins: list | None = None) -> np.ndarray:
         """Full MuJoCo states at the starts of ``windows``; for 2SEP, those that start at rest take
         2SEP's states from a lead-in.
 
@@ -500,7 +512,9 @@ class Predictor:
         sample where the motor still moved (``lead_samples``), supplies them. Only the 2SEP
         states are taken: the window still starts from the measured motion, and Bouc-Wen's x
         follows the path anyway. The lead-ins cost up to ``design.lead`` of simulation per
-        resting window.
+        resting window. A flexible link's lead-in (``_flexible_start``) is appended to
+        ``lead_ins``, if given, to be run with other models' (it completes the returned states in
+        place), else run here.
         """
         i0 = self.starts[windows]
         lead = self.lead_samples[windows] if isinstance(ji.params.friction, TwoSEP) else np.zeros(len(i0), int)
@@ -512,10 +526,11 @@ class Predictor:
         x = self._initial_states(model, np.concatenate([i0, i0[rows] - lead, i0[flex] - flex_lead]), ji, skew)
         x0, first, bent = x[:len(i0)], x[len(i0):len(i0) + len(rows)], x[len(i0) + len(rows):]
         if flex.size:
-            self._flexible_start(model, ji, delay, i0[flex] - flex_lead, bent)
-            qadr, vadr = _hidden_coordinates(model, ji)
-            x0[flex[:, None], 1 + qadr[None, :]] = bent[:, 1 + qadr]
-            x0[flex[:, None], 1 + model.nq + vadr[None, :]] = bent[:, 1 + model.nq + vadr]
+            job = _FlexLead(model, ji, delay, i0[flex] - flex_lead, bent, x0, flex)
+            if lead_ins is None:
+                self._flexible_start([job])
+            else:
+                lead_ins.append(job)
         if rows.size == 0:
             return x0
         sub = self._substeps(model)
@@ -540,10 +555,12 @@ class Predictor:
         first = bounds[np.searchsorted(bounds, i0, side="right") - 1]
         return np.flatnonzero(i0 - lead >= first)
 
-    def _flexible_start(self, model, ji, delay: float, at: np.ndarray, x: np.ndarray) -> None:
-        """Runs the states ``x`` at samples ``at`` over FLEX_LEAD (in place): the model's rod
-        driven by the measured hub, so that its segments at the window starts are bent as the hub
-        bent them.
+    def _flexible_start(self, jobs: list["_FlexLead"]) -> None:
+        """Runs each job's states ``x`` at samples ``at`` over FLEX_LEAD (in place) and takes its
+        segments' angles and rates into its window starts: the model's rod driven by the measured
+        hub, so that its segments at the window starts are bent as the hub bent them. All jobs
+        (the models of one batch) step together, one rollout call per sample, not one per model
+        and sample: each call costs more than the step of its rows.
 
         The encoders see the hub only; the rod's bending and vibration are states no sample
         gives. A straight rod at each start sets off a vibration the recording does not hold
@@ -553,17 +570,35 @@ class Predictor:
         time with the encoders' joints put back on the record, and only the segments' relative
         angles and rates are taken (``_start_states``).
         """
+        if not jobs:
+            return
         m = self.m
         lead = int(round(FLEX_LEAD * m.rate))
-        seen = [(1 + ji.motor_qpos, m.q), (1 + model.nq + ji.motor_dof, m.qd)]
-        if ji.link_qpos >= 0:
-            seen += [(1 + ji.link_qpos, m.theta), (1 + model.nq + ji.link_dof, m.thetad)]
+        seen = []  # per job: (state column, measured signal) of the encoders' joints
+        for job in jobs:
+            model, ji = job.model, job.ji
+            cols = [(1 + ji.motor_qpos, m.q), (1 + model.nq + ji.motor_dof, m.qd)]
+            if ji.link_qpos >= 0:
+                cols += [(1 + ji.link_qpos, m.theta), (1 + model.nq + ji.link_dof, m.thetad)]
+            seen.append(cols)
+        models = [job.model for job in jobs for _ in job.at]
+        ends = np.cumsum([len(job.at) for job in jobs])
+        x = np.concatenate([job.x for job in jobs])
+        parts = np.split(x, ends[:-1])  # views: each job's rows of x
         for k in range(lead):  # one sample at a time, the encoders' joints put back on the record
-            for col, meas in seen:
-                x[:, col] = meas[at + k]
-            for a, b, state in self._rollouts([model] * len(at), x, self._controls(model, at + k, 2, delay, ji)):
+            for part, job, cols in zip(parts, jobs, seen):
+                for col, meas in cols:
+                    part[:, col] = meas[job.at + k]
+            ctrl = np.concatenate([self._controls(job.model, job.at + k, 2, job.delay, job.ji) for job in jobs])
+            for a, b, state in self._rollouts(models, x, ctrl):
                 x[a:b] = state[:, -1]
-        self.rollouts += len(at) * lead / (len(self.starts) * (self.nwin_samples - 1))
+        for part, job in zip(parts, jobs):
+            job.x[:] = part
+            qadr, vadr = _hidden_coordinates(job.model, job.ji)
+            nq = job.model.nq
+            job.x0[job.rows[:, None], 1 + qadr[None, :]] = part[:, 1 + qadr]
+            job.x0[job.rows[:, None], 1 + nq + vadr[None, :]] = part[:, 1 + nq + vadr]
+        self.rollouts += int(ends[-1]) * lead / (len(self.starts) * (self.nwin_samples - 1))
 
     @cached_property
     def lead_samples(self) -> np.ndarray:
@@ -573,6 +608,15 @@ class Predictor:
         m = self.m
         return lead_samples(m.qd, REVERSAL_BAND * m.q_noise * m.rate, self.starts, m.joins,
                             int(round(self.design.lead * m.rate)))
+
+    @cached_property
+    def _held_input(self) -> tuple[np.ndarray, np.ndarray]:
+        """(knots, integral of the zero-order-held input at them) (``_controls``): computed once,
+        not per call (a flexible lead-in makes one call per sample)."""
+        m = self.m
+        period = 1.0 / m.rate
+        cum = np.concatenate([[0.0], np.cumsum(m.u) * period])
+        return m.t[0] + period * np.arange(len(cum)), cum
 
     def _controls(self, model, i0: np.ndarray, n: int, delay: float, ji) -> np.ndarray:
         """Per-step controls of ``n``-sample runs from samples ``i0``: the zero-order-held input
@@ -585,9 +629,7 @@ class Predictor:
         sub = self._substeps(model)
         h = model.opt.timestep
         m = self.m
-        period = 1.0 / m.rate
-        cum = np.concatenate([[0.0], np.cumsum(m.u) * period])  # integral of the held input
-        knots = m.t[0] + period * np.arange(len(cum))
+        knots, cum = self._held_input
         tk = m.t[i0][:, None] + h * np.arange((n - 1) * sub)[None, :] - delay
         # A delayed window at a join would otherwise take the previous recording's input.
         first = np.array([a for a, _ in m.segments])
@@ -646,6 +688,20 @@ class Predictor:
     @property
     def test(self) -> np.ndarray:
         return np.flatnonzero(self.holdout)
+
+
+@dataclass
+class _FlexLead:
+    """One model's flexible lead-in (``Predictor._flexible_start``): the states ``x`` at samples
+    ``at``, run over FLEX_LEAD, give the hidden coordinates of the window starts ``x0[rows]``."""
+
+    model: object
+    ji: object
+    delay: float
+    at: np.ndarray
+    x: np.ndarray
+    x0: np.ndarray
+    rows: np.ndarray
 
 
 def lead_samples(qd: np.ndarray, moving_speed: float, starts: np.ndarray, joins, cap: int) -> np.ndarray:
