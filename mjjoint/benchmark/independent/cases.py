@@ -102,8 +102,10 @@ def _cogging(r):
 
 def _position_friction(r):
     p = _lab(r)
+    # the generic form of this very structure: a friction level periodic in the motor angle
     return _with(p, position_friction=PositionDependence(amplitude=r.uniform(0.3, 0.5), per_rad=r.uniform(0.3, 0.8),
-                                                         phase=r.uniform(-math.pi, math.pi))), {}
+                                                         phase=r.uniform(-math.pi, math.pi))), \
+        {"right": ("motor_friction_periodic_q",)}
 
 
 def _maxwell(r):
@@ -160,9 +162,9 @@ def _backlash_and_lag(r):
 
 
 def _position_friction_and_hysteresis(r):
-    p, _ = _position_friction(r)
+    p, truth = _position_friction(r)
     return _with(p, hysteresis=BoucWenLaw(mu=r.uniform(0.6, 0.8), beta=1 / r.uniform(4e-3, 8e-3))), \
-        {"right": ("transmission_hysteresis",)}
+        {"right": ("transmission_hysteresis", *truth["right"])}
 
 
 CASES: dict[str, tuple[str, Callable]] = {
@@ -172,7 +174,7 @@ CASES: dict[str, tuple[str, Callable]] = {
     "boucwen_soft": ("Bouc-Wen gear, elastic share 0.6-0.8, x_u 4-8 mrad", _boucwen),
     "play_gear": ("Prandtl-Ishlinskii gear hysteresis (three play operators)", _play_gear),
     "cogging": ("cogging torque at a non-integer period, 2.3-7.7 per motor radian", _cogging),
-    "position_friction": ("Coulomb level varying 30-50 % with the motor angle (outside the catalogue)",
+    "position_friction": ("Coulomb level varying 30-50 % with the motor angle (a generic form's structure)",
                           _position_friction),
     "maxwell_slip": ("4-element Maxwell-slip friction instead of LuGre", _maxwell),
     "current_loop": ("current loop as a 2-5 ms first-order lag", _current_loop),
