@@ -1,0 +1,77 @@
+"""The search's revision step (diagnosis/revise.py): a named effect swapped for a rival that
+explains the recording better, an effect the later ones made redundant removed, and the
+bookkeeping that keeps steps, rivals and the report's models consistent."""
+from __future__ import annotations
+
+import pytest
+
+from mjjoint.benchmark.cases import GEAR_RATIO, make_case
+from mjjoint.benchmark.score import write_case_recording
+from mjjoint.diagnosis.floor import noise_floor
+from mjjoint.diagnosis.loop import DiagnoseOptions, Step, residual_location
+from mjjoint.diagnosis.revise import related, removable, revise, rivals, step_models, without
+from mjjoint.identify.fit import fit
+from mjjoint.identify.structure import Structure
+from mjjoint.identify.windows import Measured, Predictor, WindowDesign
+from mjjoint.recordings import read_recording
+
+
+def _step(effect: str, prerequisites=(), alternatives=()) -> Step:
+    return Step(effect=effect, evidence=[], where={}, parameters={}, fit_before={}, fit_after={}, gain=0.5,
+                screened={}, alternatives=list(alternatives), prerequisites=list(prerequisites))
+
+
+def test_rivals_act_at_the_same_site_under_a_shared_condition():
+    case = make_case("backlash", 1)
+    s = Structure.create((*case.base_effects, "transmission_hysteresis"), case.truth.nominal, GEAR_RATIO)
+    assert related("backlash", "transmission_hysteresis") and related("input_offset", "friction_asymmetry")
+    assert not related("backlash", "dynamic_friction")  # a shared condition, another site
+    assert rivals(_step("transmission_hysteresis"), s) == ["backlash"]
+    # an effect that needs the one replaced cannot take its place; one the step found
+    # indistinguishable can, wherever it acts
+    assert "dynamic_friction" not in rivals(_step("coulomb_friction"), without(s, ["coulomb_friction"]))
+    assert "input_delay" in rivals(_step("transmission_hysteresis", alternatives=["input_delay"]), s)
+    assert rivals(_step("transmission_hysteresis"), s, excluded=("backlash",)) == []
+
+
+def test_removal_keeps_what_other_effects_need_and_the_models_peel_the_final_fit():
+    case = make_case("backlash", 1)
+    s = Structure.create((*case.base_effects, "backlash"), case.truth.nominal, GEAR_RATIO)
+    assert not removable(s, ["linear_stiffness"]) and removable(s, ["backlash"])
+    reduced = without(s, ["backlash"])
+    assert "backlash" not in reduced.effects and "backlash.width" not in reduced.values
+    assert set(reduced.values) == {p.name for p in reduced.params}
+    base = without(s, ["backlash", "gravity"])
+    models = step_models(base, s, [_step("gravity"), _step("backlash")])
+    assert [("gravity" in m.effects, "backlash" in m.effects) for m in models] == [
+        (False, False), (True, False), (True, True)]
+
+
+@pytest.fixture(scope="module")
+def backlash_recording(tmp_path_factory):
+    """The concealed benchmark's backlash case (8 s, as its CI subset): a play in the gear."""
+    case = make_case("backlash", 1)
+    path = write_case_recording(case, tmp_path_factory.mktemp("revise"), 8.0)
+    rec = read_recording(path, gear_ratio=GEAR_RATIO)
+    return case, Predictor(Measured.from_recording(rec, GEAR_RATIO), WindowDesign(seed=1))
+
+
+def test_a_rival_named_first_is_swapped_for_the_effect_that_explains_the_recording(backlash_recording):
+    case, predictor = backlash_recording
+    options = DiagnoseOptions(candidates=("backlash", "transmission_hysteresis", "stribeck_friction",
+                                          "dynamic_friction", "input_delay"))
+    base = Structure.create(case.base_effects, case.truth.nominal, GEAR_RATIO)
+    # The hysteretic gear forced in first, where the truth is a play.
+    forced = fit(predictor, base.with_effect("transmission_hysteresis"), max_iter=options.fit_iter)
+    where = residual_location(predictor, base)
+    floor_cost = noise_floor(predictor, forced.structure).cost()
+    lines = []
+    current, steps, done = revise(predictor, forced, [_step("transmission_hysteresis")], where, options,
+                                  floor_cost, lines.append)
+    assert [(r.kind, r.effect, r.by) for r in done] == [("swap", "transmission_hysteresis", "backlash")], lines
+    assert [s.effect for s in steps] == ["backlash"] and steps[0].screen == "swapped for transmission_hysteresis"
+    assert "transmission_hysteresis" not in current.structure.effects
+    assert done[0].cost_after < 0.9 * done[0].cost_before == pytest.approx(0.9 * forced.cost_test)
+    width = current.structure.values["backlash.width"]
+    truth = case.truth.values["backlash.width"]
+    assert abs(width / truth - 1.0) < 0.5
