@@ -58,8 +58,9 @@ def backlash_recording(tmp_path_factory):
 
 def test_a_rival_named_first_is_swapped_for_the_effect_that_explains_the_recording(backlash_recording):
     case, predictor = backlash_recording
+    # Fewer refit iterations than the command line's: the swap shows after a few.
     options = DiagnoseOptions(candidates=("backlash", "transmission_hysteresis", "stribeck_friction",
-                                          "dynamic_friction", "input_delay"))
+                                          "dynamic_friction", "input_delay"), fit_iter=8)
     base = Structure.create(case.base_effects, case.truth.nominal, GEAR_RATIO)
     # The hysteretic gear forced in first, where the truth is a play.
     forced = fit(predictor, base.with_effect("transmission_hysteresis"), max_iter=options.fit_iter)

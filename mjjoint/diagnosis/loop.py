@@ -15,8 +15,10 @@ Each round:
    to (``identify.generic``: the open vocabulary, named by site and form) are screened and
    judged the same way;
    it is added, the whole structure refitted (least squares, then under the robust loss over
-   windows, kept if that lowers the held-out cost: ``DiagnoseOptions.robust_refit``), and the
-   next round starts;
+   windows, kept if that lowers the held-out cost: ``DiagnoseOptions.robust_refit``), the
+   search revised (``diagnosis.revise``: an addition that is a stand-in is refused, named
+   effects are swapped for rivals or removed when the acceptance rule says so), and the next
+   round starts;
 5. when no candidate passes, the final structure's parameters are estimated once more under the
    robust loss over windows (``identify.fit``, ``robust=True``; ``DiagnoseOptions.robust_final``),
    kept only if that lowers the held-out cost.
@@ -378,12 +380,15 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         unresolved = {}  # screened against the model before this addition
         if options.revise:
             from .revise import revise, stand_in  # revise builds on this module
-            refusal = stand_in(predictor, current, refit, step, steps, options, floor_cost, say)
+            refusal, freer = stand_in(predictor, current, refit, step, steps, options, floor_cost, say)
             if refusal is not None:
+                if freer is not None and freer.cost_test < current.cost_test:  # the same structure, fitted further
+                    current = history[-1] = freer
                 say(f"  {principal} is not named: {refusal.reason}")
                 revisions.append(refusal)
-                search = dataclasses.replace(options, candidates=tuple(
-                    e for e in options.candidates or default_candidates(current.structure) if e not in refused(revisions)))
+                allowed = options.candidates or default_candidates(current.structure)
+                search = dataclasses.replace(options, candidates=tuple(e for e in allowed
+                                                                       if e not in refused(revisions)))
                 continue
         steps.append(step)
         current = refit

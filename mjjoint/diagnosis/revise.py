@@ -51,12 +51,17 @@ class Revision:
 
     @property
     def line(self) -> str:
-        costs = f"held-out cost {self.cost_before:.4g} -> {self.cost_after:.4g}"
-        if self.kind == "swap":
-            return f"{self.effect} replaced by {self.by.replace(BUNDLE, ' + ')} ({costs})"
-        if self.kind == "removal":
-            return f"{self.effect} removed ({costs}): {self.reason}"
-        return f"{self.effect}: {self.reason}"
+        return revision_line(self.as_dict())
+
+
+def revision_line(record: dict) -> str:
+    """A revision in words, from its ``Revision.as_dict`` record (diagnosis.json data)."""
+    costs = f"held-out cost {record['heldout_cost_before']:.4g} -> {record['heldout_cost_after']:.4g}"
+    if record["kind"] == "swap":
+        return f"{record['effect']} replaced by {record['by'].replace(BUNDLE, ' + ')} ({costs})"
+    if record["kind"] == "removal":
+        return f"{record['effect']} removed ({costs}): {record['reason']}"
+    return f"{record['effect']} ({record['reason']})"
 
 
 def related(a: str, b: str) -> bool:
@@ -120,32 +125,36 @@ def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: d
 
 
 def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: Step, named: list[Step],
-             options: DiagnoseOptions, floor_cost: float, say: Callable[[str], None]) -> Revision | None:
-    """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc):
-    its own parameters on their bounds, or, when it is ``related`` to an effect already
-    ``named``, its gain gone against ``before`` refitted with more freedom. None: it is not."""
+             options: DiagnoseOptions, floor_cost: float, say: Callable[[str], None]
+             ) -> tuple[Revision | None, FitResult | None]:
+    """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): its
+    own parameters on their bounds, or, when it is ``related`` to an effect already ``named``,
+    its gain gone against the model without it refitted with more freedom, from where ``after``
+    left the other parameters (the added term may only have carried them to a better optimum).
+    Returns (the refusal or None, that refit of the model without it or None)."""
     if not named:
-        return None
+        return None, None
     own = [p.name for p in EFFECTS[step.effect].params]
     bound = [n for n in after.on_bound if n in own]
     if bound:
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
                         f"passed the acceptance rule with its parameters on their bounds ({', '.join(bound)}): "
-                        "a stand-in, not an estimate")
+                        "a stand-in, not an estimate"), None
     earlier = [s.effect for s in named if related(s.effect, step.effect)]
     if not earlier:
-        return None
-    say(f"  {step.effect} acts where {', '.join(earlier)} does: its gain tested against the model refitted "
-        "with every parameter free")
-    ref = _refit(predictor, before, options, robust=True)
+        return None, None
+    say(f"  {step.effect} acts where {', '.join(earlier)} does: its gain tested against the model without it "
+        "refitted from its values, every parameter free")
+    free = fit(predictor, without(after.structure, step.effects), max_iter=options.fit_iter)
+    ref = _robust_kept(predictor, min(before, free, key=lambda r: r.cost_test), options)
     gain, consistency, failed = acceptance(predictor, ref, after, step.effect, options, floor_cost, options.max_p)
-    say(f"  against the freer reference (held-out cost {ref.cost_test:.4g}): {step.effect} "
+    say(f"  against that reference (held-out cost {ref.cost_test:.4g}): {step.effect} "
         f"{-100 * gain:+.1f} %, p {consistency['p']:.3g}" + (f"; fails: {', '.join(failed)}" if failed else ""))
     if not failed:
-        return None
+        return None, ref
     return Revision("stand-in", step.effect, ref.cost_test, after.cost_test,
-                    f"re-explains what {', '.join(earlier)} explains: against the model without it refitted "
-                    f"with every parameter free it fails {', '.join(failed)}")
+                    f"re-explains what {', '.join(earlier)} and the rest explain: against the model without it "
+                    f"refitted from its values it fails {', '.join(failed)}"), ref
 
 
 def revise(predictor: Predictor, current: FitResult, steps: list[Step], where: dict, options: DiagnoseOptions,
@@ -222,17 +231,19 @@ def _swap(predictor, current, steps, where, options, floor_cost, say, excluded):
         f"the model with {effect} in its place passes the acceptance rule (p {consistency['p']:.3g})", by=key)
 
 
-def _refit(predictor: Predictor, result: FitResult, options: DiagnoseOptions, robust: bool | None = None
-           ) -> FitResult:
-    """``result``'s structure fitted as an added one is: every parameter free (``fit_iter``), then
-    under the robust loss (``robust``, default ``options.robust_refit``), each kept only if it
-    predicts the held-out windows better."""
+def _refit(predictor: Predictor, result: FitResult, options: DiagnoseOptions) -> FitResult:
+    """A revised structure fitted as an added one is: every parameter free (``fit_iter``), then
+    under the robust loss (``options.robust_refit``), each kept only if it predicts the held-out
+    windows better."""
     full = fit(predictor, result.structure, max_iter=options.fit_iter)
     best = full if full.cost_test < result.cost_test else result
-    if options.robust_refit if robust is None else robust:
-        refit, keep = _robust(predictor, best, options, None)
-        best = refit if keep else best
-    return best
+    return _robust_kept(predictor, best, options) if options.robust_refit else best
+
+
+def _robust_kept(predictor: Predictor, result: FitResult, options: DiagnoseOptions) -> FitResult:
+    """``result`` refitted under the robust loss if that predicts the held-out windows better."""
+    robust, keep = _robust(predictor, result, options, None)
+    return robust if keep else result
 
 
 def step_models(initial: Structure, final: Structure, steps: list[Step]) -> list[Structure]:
