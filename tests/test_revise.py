@@ -8,8 +8,9 @@ import pytest
 from mjjoint.benchmark.cases import GEAR_RATIO, make_case
 from mjjoint.benchmark.score import write_case_recording
 from mjjoint.diagnosis.floor import noise_floor
-from mjjoint.diagnosis.loop import DiagnoseOptions, Step, residual_location
-from mjjoint.diagnosis.revise import related, removable, revise, rivals, step_models, without
+from mjjoint.diagnosis.loop import DiagnoseOptions, Step, acceptance, residual_location
+from mjjoint.diagnosis.revise import related, removable, revise, rivals, stand_in, step_models, without
+from mjjoint.identify.effects import EFFECTS
 from mjjoint.identify.fit import fit
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
@@ -76,3 +77,35 @@ def test_a_rival_named_first_is_swapped_for_the_effect_that_explains_the_recordi
     width = current.structure.values["backlash.width"]
     truth = case.truth.values["backlash.width"]
     assert abs(width / truth - 1.0) < 0.5
+
+
+def test_an_effect_that_only_carries_the_others_to_a_better_fit_is_a_stand_in(backlash_recording):
+    """The play named, its fit stalled; the hysteretic gear added passes the acceptance rule
+    against the stalled fit, and the guard refuses it: fitted freely its parameters end on their
+    bounds; held off them (nearly elastic), the model with the play alone, refitted from the values the addition
+    reached, does at least as well."""
+    case, predictor = backlash_recording
+    options = DiagnoseOptions(fit_iter=8)
+    named = Structure.create((*case.base_effects, "backlash"), case.truth.nominal, GEAR_RATIO)
+    stalled = fit(predictor, named, max_iter=1)
+    # A nearly elastic hysteretic gear, as such stand-ins end (out-of-regime backlash_wide: mu 0.97).
+    trial = named.with_effect("transmission_hysteresis", {"transmission_hysteresis.mu": 0.95,
+                                                          "transmission_hysteresis.x_u": 1e-3})
+    floor_cost = noise_floor(predictor, trial).cost()
+    step, lines = _step("transmission_hysteresis"), []
+    for held in ((), [p.name for p in EFFECTS["transmission_hysteresis"].params]):
+        added = fit(predictor, trial, [p.name for p in trial.params if p.name not in held], max_iter=options.fit_iter)
+        gain, _, failed = acceptance(predictor, stalled, added, step.effect, options, floor_cost, options.max_p)
+        assert not failed and gain > 0.5  # the plain acceptance rule would name it
+        refusal, freer = stand_in(predictor, stalled, added, step, [_step("backlash")], options, floor_cost,
+                                  lines.append)
+        assert refusal is not None and refusal.kind == "stand-in", lines
+        if not held:
+            assert "on their bounds" in refusal.reason and freer is None
+        else:
+            assert "re-explains what backlash" in refusal.reason, refusal
+            assert freer.cost_test <= added.cost_test < stalled.cost_test
+            assert "transmission_hysteresis" not in freer.structure.effects
+    # An effect acting where no named one acts is not second-guessed that way.
+    assert stand_in(predictor, stalled, added, step, [_step("gravity")], options, floor_cost, lines.append) == (
+        None, None)
