@@ -147,9 +147,9 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
         "refitted from its values, every parameter free")
     free = fit(predictor, without(after.structure, step.effects), max_iter=options.fit_iter)
     ref = _robust_kept(predictor, min(before, free, key=lambda r: r.cost_test), options)
-    gain, consistency, failed = acceptance(predictor, ref, after, step.effect, options, floor_cost, options.max_p)
-    say(f"  against that reference (held-out cost {ref.cost_test:.4g}): {step.effect} "
-        f"{-100 * gain:+.1f} %, p {consistency['p']:.3g}" + (f"; fails: {', '.join(failed)}" if failed else ""))
+    _, consistency, failed = acceptance(predictor, ref, after, step.effect, options, floor_cost, options.max_p)
+    say(f"  held-out cost {ref.cost_test:.4g} without {step.effect} refitted, {after.cost_test:.4g} with it "
+        f"(p {consistency['p']:.3g})" + (f"; fails: {', '.join(failed)}" if failed else ""))
     if not failed:
         return None, ref
     return Revision("stand-in", step.effect, ref.cost_test, after.cost_test,
