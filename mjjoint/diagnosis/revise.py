@@ -176,20 +176,24 @@ def revise(predictor: Predictor, current: FitResult, steps: list[Step], where: d
 
 def _removal(predictor, current, steps, options, floor_cost, say):
     """The first named step (oldest first) that, tested as an addition to the model without it,
-    no longer passes; None if each still does. The newest step has just passed that test."""
+    no longer passes; None if each still does. The newest step has just passed that test. A step
+    whose prerequisites a later effect needs loses its effect only, and names them instead."""
     for i, step in enumerate(steps[:-1]):
-        if not removable(current.structure, step.effects):
+        gone = next((g for g in (step.effects, (step.effect,)) if removable(current.structure, g)), None)
+        if gone is None:
             continue
-        reduced = without(current.structure, step.effects)
-        ref = fit(predictor, reduced, screened_params(BUNDLE.join(step.effects), reduced),
-                  max_iter=options.screen_iter)
-        gain, consistency, failed = acceptance(predictor, ref, current, step.effect, options, floor_cost,
-                                               options.max_p)
+        reduced = without(current.structure, gone)
+        ref = fit(predictor, reduced, screened_params(BUNDLE.join(gone), reduced), max_iter=options.screen_iter)
+        _, consistency, failed = acceptance(predictor, ref, current, step.effect, options, floor_cost, options.max_p)
         say(f"  removal test of {step.effect}: held-out cost {ref.cost_test:.4g} without it, {current.cost_test:.4g}"
             f" with it (p {consistency['p']:.3g})" + (f": fails {', '.join(failed)}" if failed else ": still needed"))
         if failed:
             refit = _refit(predictor, ref, options)
-            return refit, steps[:i] + steps[i + 1:], Revision(
+            kept = [e for e in step.effects if e not in gone]
+            rest = [] if not kept else [dataclasses.replace(
+                step, effect=kept[-1], prerequisites=kept[:-1], evidence=_evidence(BUNDLE.join(kept), step.where),
+                parameters={p.name: refit.structure.values[p.name] for e in kept for p in EFFECTS[e].params})]
+            return refit, [*steps[:i], *rest, *steps[i + 1:]], Revision(
                 "removal", step.effect, current.cost_test, refit.cost_test,
                 f"given the effects named after it, it fails {', '.join(failed)}")
     return None
