@@ -110,3 +110,20 @@ def test_an_effect_that_only_carries_the_others_to_a_better_fit_is_a_stand_in(ba
     # An effect acting where no named one acts is not second-guessed that way.
     assert stand_in(predictor, stalled, added, step, [_step("gravity")], options, floor_cost, lines.append) == (
         None, None)
+
+
+@pytest.mark.slow
+def test_an_effect_the_later_ones_made_redundant_is_removed(backlash_recording):
+    """An input offset named first (the truth has none), then the play: given the play, the
+    offset no longer passes as an addition and is removed; the play stays."""
+    case, predictor = backlash_recording
+    options = DiagnoseOptions(fit_iter=8, robust_refit=False)
+    structure = Structure.create((*case.base_effects, "input_offset", "backlash"), case.truth.nominal, GEAR_RATIO)
+    current = fit(predictor, structure, max_iter=options.fit_iter)
+    floor_cost = noise_floor(predictor, current.structure).cost()
+    lines = []
+    current, steps, done = revise(predictor, current, [_step("input_offset"), _step("backlash")],
+                                  residual_location(predictor, current.structure), options, floor_cost,
+                                  lines.append)
+    assert [(r.kind, r.effect) for r in done] == [("removal", "input_offset")], lines
+    assert [s.effect for s in steps] == ["backlash"] and "input_offset" not in current.structure.effects
