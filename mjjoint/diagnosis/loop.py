@@ -468,7 +468,7 @@ def _verdict(steps: list[Step], initial: FitResult, final: FitResult, floor: Flo
     found = {e for s in steps for e in s.effects}
 
     def rivals(step: Step) -> str:  # rivals found later are no longer alternatives
-        alt = [a for a in step.alternatives if a not in found]
+        alt = [a for a in step.alternatives if parts(a.replace(" + ", BUNDLE))[-1] not in found]
         return f" (or, indistinguishable here, {' / '.join(alt)})" if alt else ""
     named = ", ".join(s.label + rivals(s) for s in steps)
     if steps and explained:
