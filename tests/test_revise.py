@@ -9,12 +9,13 @@ from mjjoint.benchmark.cases import GEAR_RATIO, make_case
 from mjjoint.benchmark.score import write_case_recording
 from mjjoint.diagnosis.floor import noise_floor
 from mjjoint.diagnosis.loop import DiagnoseOptions, Step, acceptance, residual_location
-from mjjoint.diagnosis.revise import related, removable, revise, rivals, stand_in, step_models, without
+from mjjoint.diagnosis.revise import Revision, related, removable, revise, rivals, stand_in, step_models, without
 from mjjoint.identify.effects import EFFECTS
 from mjjoint.identify.fit import fit
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.recordings import read_recording
+from mjjoint.report.summary import revision_lines
 
 
 def _step(effect: str, prerequisites=(), alternatives=()) -> Step:
@@ -127,3 +128,14 @@ def test_an_effect_the_later_ones_made_redundant_is_removed(backlash_recording):
                                   lines.append)
     assert [(r.kind, r.effect) for r in done] == [("removal", "input_offset")], lines
     assert [s.effect for s in steps] == ["backlash"] and "input_offset" not in current.structure.effects
+
+
+def test_revisions_are_reported_with_their_costs():
+    revisions = [Revision("swap", "transmission_hysteresis", 0.052, 0.0008, "passes", by="backlash"),
+                 Revision("removal", "input_offset", 0.01, 0.011, "given the effects named after it, it fails x"),
+                 Revision("stand-in", "transmission_hysteresis", 0.011, 0.013, "re-explains what backlash explains")]
+    lines = revision_lines({"revisions": [r.as_dict() for r in revisions]})
+    assert lines == ["transmission_hysteresis replaced by backlash (held-out cost 0.052 -> 0.0008)",
+                     "input_offset removed (held-out cost 0.01 -> 0.011): given the effects named after it, it fails x",
+                     "not named, a stand-in: transmission_hysteresis (re-explains what backlash explains)"]
+    assert revision_lines({}) == []  # a diagnosis.json written before revisions existed
