@@ -337,7 +337,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             # A second look at the same question: each look at half the level keeps the pair at
             # max_p (Bonferroni), so the escalation cannot raise the false-addition rate.
             choice, screen = _decide(predictor, ref, screened, options, floor_cost, options.max_p / 2), "all free"
-        generic = generic_candidates(ref.structure, where, refused(revisions)) if choice.failed and options.generic else ()
+        generic = (generic_candidates(ref.structure, where, refused(revisions)) if choice.failed and options.generic
+                   else ())
         if generic:
             say(f"  no catalogued effect explains the located residual: screening the generic forms it "
                 f"points to ({', '.join(generic)})")
