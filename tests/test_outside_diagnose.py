@@ -25,8 +25,6 @@ def test_a_hysteretic_gear_of_the_independent_plant_is_named(tmp_path):
 
 # The benchmark itself, with the issue's criteria (slow: ~3 min a case on 2 cores).
 KNOWN_FAILURES: dict[str, str] = {
-    "backlash_wide": "backlash named, then transmission_hysteresis added as a stand-in for the truth's "
-                     "sticking bearings (docs/benchmark.md, Out-of-regime set)",
     "small_motor": "explained at 1.47x the tool's floor, whose windowing part (its twin, 0.032-0.034) is "
                    "3x the true sensors' floor; the scorer cannot check the twin independently",
 }

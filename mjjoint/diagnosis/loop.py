@@ -17,8 +17,10 @@ Each round:
    to (``identify.generic``: the open vocabulary, named by site and form) are screened and
    judged the same way;
    it is added, the whole structure refitted (least squares, then under the robust loss over
-   windows, kept if that lowers the held-out cost: ``DiagnoseOptions.robust_refit``), and the
-   next round starts;
+   windows, kept if that lowers the held-out cost: ``DiagnoseOptions.robust_refit``), the
+   search revised (``diagnosis.revise``: an addition that is a stand-in is refused, named
+   effects are swapped for rivals or removed when the acceptance rule says so), and the next
+   round starts;
 5. when no candidate passes, the final structure's parameters are estimated once more under the
    robust loss over windows (``identify.fit``, ``robust=True``; ``DiagnoseOptions.robust_final``),
    kept only if that lowers the held-out cost.
@@ -109,6 +111,7 @@ class DiagnoseOptions:
     robust_refit: bool = True    # each added effect's refit once more under the robust loss (step 4)
     free_all: bool = True        # a material but inconsistent best screen: screen again, all free
     generic: bool = True         # where no catalogued effect explains a located residual, fit the generic forms it points to
+    revise: bool = True          # after each addition: stand-in guard, swaps for rivals, removals (diagnosis.revise)
 
 
 @dataclass
@@ -161,6 +164,20 @@ class Diagnosis:
     stand_ins: dict[str, str] = field(default_factory=dict)   # parameter -> which bound it sits on
     unstable: dict[str, str] = field(default_factory=dict)    # screened candidate -> why unstable
     unresolved: dict[str, float] = field(default_factory=dict)  # candidate -> its screen's held-out cost / the reference's
+    revisions: list = field(default_factory=list)  # diagnosis.revise.Revision: swaps, removals, stand-ins refused
+
+    @property
+    def stand_in_effects(self) -> dict[str, str]:
+        """{effect: why}: effects that passed the acceptance rule but were refused as stand-ins."""
+        return {r.effect: r.reason for r in self.revisions if r.kind == "stand-in"}
+
+    def models(self) -> list[Structure]:
+        """The model before the first step and after each (the final one last); after a swap or
+        a removal, as the final fit has them (``revise.step_models``)."""
+        from .revise import step_models
+        if any(r.kind != "stand-in" for r in self.revisions):
+            return step_models(self.initial.structure, self.final.structure, self.steps)
+        return [r.structure for r in self.history] if self.steps else [self.initial.structure]
 
     @property
     def missing(self) -> list[str]:
@@ -179,6 +196,8 @@ class Diagnosis:
                 "stand_ins": self.stand_ins,
                 "unstable_screens": self.unstable,
                 "unresolved_screens": self.unresolved,
+                "revisions": [r.as_dict() for r in self.revisions],
+                "stand_in_effects": self.stand_in_effects,
                 "verdict": self.verdict,
                 "budget": {"rollouts_full_length": round(self.rollouts, 1)}}
 
@@ -254,12 +273,17 @@ def screened_params(key: str, structure: Structure) -> list[str]:
     return names
 
 
+def default_candidates(structure: Structure) -> tuple[str, ...]:
+    """The effects screened unless the options name them: every one the plant can have but the
+    sensors' and the generic forms."""
+    return tuple(e for e in plant_effects(structure.nominal) if e not in SENSOR_EFFECTS and e not in GENERIC)
+
+
 def candidates_for(structure: Structure, allowed=None) -> list[str]:
     """The effects to screen on ``structure``: each one it lacks, bundled with the prerequisites
     it lacks too (module doc)."""
     possible = plant_effects(structure.nominal)
-    names = ([e for e in possible if e not in SENSOR_EFFECTS and e not in GENERIC] if allowed is None
-             else [e for e in allowed if e in possible])
+    names = list(default_candidates(structure)) if allowed is None else [e for e in allowed if e in possible]
     out = []
     for e in names:
         missing = [r for r in EFFECTS[e].requires if r not in structure.effects]
@@ -268,12 +292,12 @@ def candidates_for(structure: Structure, allowed=None) -> list[str]:
     return out
 
 
-def generic_candidates(structure: Structure, where: dict) -> tuple[str, ...]:
+def generic_candidates(structure: Structure, where: dict, excluded=()) -> tuple[str, ...]:
     """The generic forms (``identify.generic``) the model lacks whose structure a significant
-    located condition shows."""
+    located condition shows, but the ``excluded``."""
     shown = {c["name"] for _, c in located_conditions(where) if c["significant"]}
     possible = plant_effects(structure.nominal)
-    return tuple(e for e in GENERIC if e in possible and e not in structure.effects
+    return tuple(e for e in GENERIC if e in possible and e not in structure.effects and e not in excluded
                  and shown.intersection(EFFECTS[e].evidence))
 
 
@@ -295,25 +319,28 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     rejected = ""  # why the last round's best candidate was not added, for the verdict
     unresolved: dict[str, float] = {}  # the last round's screens that ended above their reference
     clock = ScreenClock(options.max_rounds)
+    revisions = []  # revise.Revision
+    search = options  # less the effects refused as stand-ins
     for k in range(1, options.max_rounds + 1):
         where = residual_location(predictor, current.structure)
         clock.round = k
         floor_cost = noise_floor(predictor, current.structure).cost()
-        ref, screened, rest = _screen(predictor, current, where, options, say, clock, unstable)
+        ref, screened, rest = _screen(predictor, current, where, search, say, clock, unstable)
         if not screened:
             break
         choice, screen = _decide(predictor, ref, screened, options, floor_cost), "stand-ins held"
         if choice.only_inconsistent and options.free_all:
             say(f"  best candidate {choice.best} fails only the rank test ({choice.failed[0]}); screening "
                 "again with every parameter free, from the model refitted")
-            ref, screened, rest = _screen(predictor, current, where, options, say, clock, unstable, free_all=True)
+            ref, screened, rest = _screen(predictor, current, where, search, say, clock, unstable, free_all=True)
             if ref.cost_test < current.cost_test:  # the same structure, fitted further
                 current = history[-1] = ref
                 initial = initial if steps else ref
             # A second look at the same question: each look at half the level keeps the pair at
             # max_p (Bonferroni), so the escalation cannot raise the false-addition rate.
             choice, screen = _decide(predictor, ref, screened, options, floor_cost, options.max_p / 2), "all free"
-        generic = generic_candidates(ref.structure, where) if choice.failed and options.generic else ()
+        generic = (generic_candidates(ref.structure, where, refused(revisions)) if choice.failed and options.generic
+                   else ())
         if generic:
             say(f"  no catalogued effect explains the located residual: screening the generic forms it "
                 f"points to ({', '.join(generic)})")
@@ -346,16 +373,35 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                     f"{refit.cost_test:.4g}: kept")
                 refit = robust
         *needed, principal = parts(best)
-        steps.append(Step(
+        step = Step(
             effect=principal, prerequisites=needed, evidence=_evidence(best, where), where=where,
             parameters={p.name: refit.structure.values[p.name] for e in parts(best) for p in EFFECTS[e].params},
             fit_before=current.nrmse_test, fit_after=refit.nrmse_test,
             gain=1.0 - refit.cost_test / current.cost_test,
             screened={**rest, **{k: v[0] for k, v in screened.items()}}, alternatives=alternatives,
-            consistency=consistency, screen=screen))
+            consistency=consistency, screen=screen)
+        unresolved = {}  # screened against the model before this addition
+        if options.revise:
+            from .revise import revise, stand_in  # revise builds on this module
+            refusal, freer = stand_in(predictor, current, refit, step, steps, options, floor_cost, say)
+            if refusal is not None:
+                if freer is not None and freer.cost_test < current.cost_test:  # the same structure, fitted further
+                    current = history[-1] = freer
+                say(f"  {principal} is not named: {refusal.reason}")
+                revisions.append(refusal)
+                allowed = options.candidates or default_candidates(current.structure)
+                search = dataclasses.replace(options, candidates=tuple(e for e in allowed
+                                                                       if e not in refused(revisions)))
+                continue
+        steps.append(step)
         current = refit
         history.append(current)
-        unresolved = {}  # screened against the model before this addition
+        if options.revise:
+            current, steps, done = revise(predictor, current, steps, where, search, floor_cost, say,
+                                          refused(revisions))
+            revisions += done
+            if done:
+                history.append(current)
     if options.robust_final:
         say("final estimate: refitting under the robust loss over windows")
         robust, keep = _robust(predictor, current, options, iterations)
@@ -379,10 +425,15 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     bounds = stand_ins(current)
     if explained:
         unresolved = {}
-    verdict = _verdict(steps, initial, current, floor, explained, final_where, rejected, bounds, unresolved)
+    verdict = _verdict(steps, initial, current, floor, explained, final_where, rejected, bounds, unresolved, revisions)
     return Diagnosis(steps, initial, current, final_where, verdict,
                      predictor.rollouts - roll0, time.perf_counter() - t_start, history,
-                     floor, explained, bounds, unstable, unresolved)
+                     floor, explained, bounds, unstable, unresolved, revisions)
+
+
+def refused(revisions) -> tuple[str, ...]:
+    """The effects refused as stand-ins (``revise.stand_in``): not screened again."""
+    return tuple(r.effect for r in revisions if r.kind == "stand-in")
 
 
 UNEXPLAINED_INTERVALS = ("the final model misses the recording above its noise floor: its 95 % intervals assume "
@@ -413,12 +464,14 @@ def unresolved_screens(screened: dict[str, tuple[float, FitResult]], ref_cost: f
 
 
 def _verdict(steps: list[Step], initial: FitResult, final: FitResult, floor: Floor, explained: bool,
-             where: dict, rejected: str, stand_ins: dict[str, str], unresolved: dict[str, float] | None = None) -> str:
-    """One of the four verdicts (module doc), in one paragraph."""
+             where: dict, rejected: str, stand_ins: dict[str, str], unresolved: dict[str, float] | None = None,
+             revisions=()) -> str:
+    """One of the four verdicts (module doc), in one paragraph; ``revisions`` (``revise.Revision``):
+    the swaps and removals that revised the named effects, and the effects refused as stand-ins."""
     found = {e for s in steps for e in s.effects}
 
     def rivals(step: Step) -> str:  # rivals found later are no longer alternatives
-        alt = [a for a in step.alternatives if a not in found]
+        alt = [a for a in step.alternatives if parts(a.replace(" + ", BUNDLE))[-1] not in found]
         return f" (or, indistinguishable here, {' / '.join(alt)})" if alt else ""
     named = ", ".join(s.label + rivals(s) for s in steps)
     if steps and explained:
@@ -437,6 +490,12 @@ def _verdict(steps: list[Step], initial: FitResult, final: FitResult, floor: Flo
         text += ("; not ruled out, their screens ended above the model they extend (fits that did not "
                  "converge): " + ", ".join(f"{k.replace(BUNDLE, ' + ')} ({r:.3g}x its held-out cost)"
                                           for k, r in unresolved.items()))
+    revised = [r.line for r in revisions if r.kind != "stand-in"]
+    if revised:
+        text += "; revised: " + "; ".join(revised)
+    refusals = [r.line for r in revisions if r.kind == "stand-in"]
+    if refusals:
+        text += "; not named, stand-ins: " + "; ".join(refusals)
     if stand_ins:
         text += ("; on a bound, stand-ins rather than estimates: "
                  + ", ".join(f"{k} = {final.structure.values[k]:.4g} ({v})" for k, v in stand_ins.items()))
@@ -625,11 +684,20 @@ def _assess(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[floa
             alternatives: list[str], options: DiagnoseOptions, floor_cost: float, max_p: float) -> _Choice:
     """The acceptance tests of candidate ``key`` against ``ref`` (module doc)."""
     cand = screened[key][1]
+    gain, consistency, failed = acceptance(predictor, ref, cand, parts(key)[-1], options, floor_cost, max_p)
+    inconsistent = consistency["p"] > max_p
+    return _Choice(key, cand, gain, alternatives, consistency, failed, inconsistent and len(failed) == 1)
+
+
+def acceptance(predictor: Predictor, ref: FitResult, cand: FitResult, effect: str, options: DiagnoseOptions,
+               floor_cost: float, max_p: float) -> tuple[float, dict, list[str]]:
+    """(relative held-out gain, consistency test record, the tests failed) of ``cand`` against
+    ``ref``, the acceptance rule of the module doc; ``effect`` decides the condition of the rank
+    test (``Effect.acts_under``). The BIC charges the parameters ``cand`` has beyond ``ref``."""
     gain = 1.0 - cand.cost_test / ref.cost_test
     n = _n_residuals(predictor)
-    p_now = len(ref.structure.params)
-    bic_ok = _bic(cand.cost_train, n, p_now + _n_params(key)) < _bic(ref.cost_train, n, p_now)
-    consistency = _consistency(predictor, parts(key)[-1], ref.structure, cand.structure)
+    bic_ok = _bic(cand.cost_train, n, len(cand.structure.params)) < _bic(ref.cost_train, n, len(ref.structure.params))
+    consistency = _consistency(predictor, effect, ref.structure, cand.structure)
     min_abs = options.floor_share * floor_cost
     material = ref.cost_test - cand.cost_test >= min_abs
     inconsistent = consistency["p"] > max_p
@@ -639,7 +707,7 @@ def _assess(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[floa
         (f"absolute gain {ref.cost_test - cand.cost_test:.2g} < {min_abs:.2g} ({options.floor_share:g} of the "
          f"noise floor's cost)", not material),
         ("BIC higher", not bic_ok)) if fails]
-    return _Choice(key, cand, gain, alternatives, consistency, failed, inconsistent and len(failed) == 1)
+    return gain, consistency, failed
 
 
 def _choose(screened: dict[str, tuple[float, FitResult]], cost_now: float) -> tuple[str, list[str]]:

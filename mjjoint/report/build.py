@@ -48,7 +48,7 @@ def write_diagnosis(folder: Path, predictor: Predictor, diag: Diagnosis, source:
     data = diag.as_dict()  # holds no wall time: that goes to run.json
     files = [write_json(folder / "diagnosis.json", data)]
     labels = model_labels(len(diag.steps))
-    structures = [r.structure for r in diag.history] if diag.steps else [diag.initial.structure]
+    structures = diag.models()
     files += write_model(folder, structures[-1], predictor.m.rate)
     cmp = compare(predictor, dict(zip(labels, structures)))
     signal = worst_signal(diag.initial.nrmse_test, predictor.signals)

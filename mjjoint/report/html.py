@@ -8,7 +8,7 @@ from html import escape
 
 from ..diagnosis.floor import EXPLAINED_RATIO
 from ..identify.effects import EFFECTS
-from .summary import SIGNAL_ORDER, parameter_rows, step_values
+from .summary import SIGNAL_ORDER, parameter_rows, revision_lines, step_values
 
 FLOOR_NOTE = f"{EXPLAINED_RATIO:g}x its noise floor, diagnosis/floor.py"
 STYLE = """
@@ -110,6 +110,10 @@ def diagnosis_page(diag: dict, images: dict, source: str, run: dict) -> str:
              _img(images["residual"], "residual over time with located windows")]
     for k, step in enumerate(diag["steps"], 1):
         body += _step(k, step, diag["final_model"], images["steps"][k - 1])
+    revised = revision_lines(diag)
+    if revised:
+        body += ["<h2>Revisions of the search</h2>",
+                 "<ul>" + "".join(f"<li>{escape(line)}</li>" for line in revised) + "</ul>"]
     final = diag["final_model"]
     body += ["<h2>Final model</h2>",
              "<p>Effects: " + (", ".join(f"<code>{escape(e)}</code>" for e in final["effects"]) or "minimal") + "</p>",

@@ -1,6 +1,7 @@
 """Plain-text summaries for the terminal: parameter tables, NRMSE before -> after, the verdict."""
 from __future__ import annotations
 
+from ..diagnosis.revise import revision_line
 from ..identify.effects import BASE_PARAMS, EFFECTS, Param
 
 SIGNAL_ORDER = ("q", "theta", "delta", "tau")
@@ -94,6 +95,10 @@ def diagnosis_summary(diag: dict, seconds: float) -> str:
                     step_values(st, final), final["intervals_95"], final["warnings"], final.get("units")):
                 ci = "" if interval == "-" else f"  95 % {interval}"
                 lines.append(f"       {name} = {value} {unit}".rstrip() + ci + ("  (!)" if flag else ""))
+    revised = revision_lines(diag)
+    if revised:
+        lines.append("revisions of the search (diagnosis.json \"revisions\"):")
+        lines += [f"  - {line}" for line in revised]
     lines.append("held-out NRMSE per signal (base model -> final model; noise floor):")
     floor = (diag.get("noise_floor") or {}).get("nrmse", {})
     before = diag["initial_fit"]["nrmse_heldout"]
@@ -107,3 +112,10 @@ def diagnosis_summary(diag: dict, seconds: float) -> str:
     lines.append(f"budget: {diag['budget']['rollouts_full_length']:g} full-length rollouts, "
                  f"{seconds:.1f} s wall time")
     return "\n".join(lines)
+
+
+def revision_lines(diag: dict) -> list[str]:
+    """One line per revision of the search (swaps, removals, effects refused as stand-ins), from
+    diagnosis.json data."""
+    return [("not named, a stand-in: " if r["kind"] == "stand-in" else "") + revision_line(r)
+            for r in diag.get("revisions", [])]

@@ -1,0 +1,261 @@
+"""Revising the search: stepwise forward selection never revisits a choice, so an effect named
+early keeps what it absorbed even when a rival would explain it better once later effects are
+in, and an effect named late may only re-explain what an earlier one already does.
+
+Three checks, all judged on the held-out windows by the acceptance rule of the additions
+(``loop.acceptance``: relative and absolute gain, the paired rank test, the BIC):
+
+- **Stand-in guard**, for every effect accepted after the first: its gain is tested once more
+  against the model without it refitted with more freedom (every parameter free, ``fit_iter``
+  iterations, then the robust loss, kept if it predicts the held-out windows better); an effect
+  whose gain does not survive that, or whose own parameters end on their bounds, is a stand-in:
+  it is reported (``stand_in_effects``), not named, and not screened again.
+- **Swap**: each named effect is replaced by each of its rivals (``rivals``: the effects acting
+  at the same site under a shared residual condition, and the ones the step found
+  indistinguishable), the rest refitted; the swap is kept when the swapped model passes the
+  acceptance rule against the current one. The incumbent keeps its place on a tie.
+- **Removal** (backward elimination): each named effect is tested as if it were added now to the
+  model without it; one that no longer passes, given the effects named after it, is removed.
+
+Revisions run after every addition, so the final structure has been revised once the last
+addition was; each one is recorded (``Revision``) with the held-out costs that decided it.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Callable
+
+from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, check_effects, plant_effects
+from ..identify.fit import FitResult, fit
+from ..identify.structure import Structure
+from ..identify.windows import Predictor
+from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust, acceptance, parts,
+                   screened_params)
+
+
+@dataclass
+class Revision:
+    """One revision of the named effects, with the held-out costs that decided it."""
+
+    kind: str                 # "swap", "removal" or "stand-in"
+    effect: str               # the effect replaced, removed or refused
+    cost_before: float        # held-out cost of the model before the revision
+    cost_after: float         # ... and after (a stand-in: with it, against the freer reference)
+    reason: str
+    by: str = ""              # a swap: the rival that replaced it
+
+    def as_dict(self) -> dict:
+        return {"kind": self.kind, "effect": self.effect, "by": self.by, "heldout_cost_before": self.cost_before,
+                "heldout_cost_after": self.cost_after, "reason": self.reason}
+
+    @property
+    def line(self) -> str:
+        return revision_line(self.as_dict())
+
+
+def revision_line(record: dict) -> str:
+    """A revision in words, from its ``Revision.as_dict`` record (diagnosis.json data)."""
+    costs = f"held-out cost {record['heldout_cost_before']:.4g} -> {record['heldout_cost_after']:.4g}"
+    if record["kind"] == "swap":
+        return f"{record['effect']} replaced by {record['by'].replace(BUNDLE, ' + ')} ({costs})"
+    if record["kind"] == "removal":
+        return f"{record['effect']} removed ({costs}): {record['reason']}"
+    return f"{record['effect']} ({record['reason']})"
+
+
+def related(a: str, b: str) -> bool:
+    """Whether effects ``a`` and ``b`` act at the same site under a shared residual condition
+    (``Effect.site``, ``Effect.evidence``): what one explains, the other can stand in for."""
+    ea, eb = EFFECTS[a], EFFECTS[b]
+    return ea.site == eb.site and bool(set(ea.evidence) & set(eb.evidence))
+
+
+def without(structure: Structure, effects) -> Structure:
+    """``structure`` with ``effects`` switched off (their values and settings dropped)."""
+    gone = set(effects)
+    kept = check_effects([e for e in structure.effects if e not in gone], plant_effects(structure.nominal))
+    s = dataclasses.replace(structure, effects=kept)
+    names = {p.name for p in s.params}
+    return dataclasses.replace(s, values={k: v for k, v in structure.values.items() if k in names},
+                               settings={k: v for k, v in structure.settings.items() if k.split(".")[0] not in gone})
+
+
+def removable(structure: Structure, effects) -> bool:
+    """Whether no effect left in ``structure`` requires one of ``effects``."""
+    gone = set(effects)
+    return not any(r in gone for e in structure.effects if e not in gone for r in EFFECTS[e].requires)
+
+
+def rivals(step: Step, structure: Structure, allowed=None, excluded=()) -> list[str]:
+    """The candidates (bundle keys, ``loop.parts``) that could take ``step.effect``'s place in
+    ``structure``: catalogued effects it lacks that are ``related`` to it, and those the step
+    found indistinguishable; none that needs the effect itself."""
+    e = step.effect
+    possible = plant_effects(structure.nominal)
+    names = [r for r in possible if r not in SENSOR_EFFECTS and r not in GENERIC and related(e, r)]
+    names += [parts(a.replace(" + ", BUNDLE))[-1] for a in step.alternatives]
+    reduced = without(structure, [e])
+    out = []
+    for r in dict.fromkeys(names):
+        if (r == e or r in structure.effects or r in excluded or e in EFFECTS[r].requires
+                or (allowed is not None and r not in allowed)):
+            continue
+        missing = [q for q in EFFECTS[r].requires if q not in reduced.effects]
+        if all(q in possible for q in missing):
+            out.append(BUNDLE.join([*missing, r]))
+    return out
+
+
+def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: dict, options: DiagnoseOptions
+                  ) -> FitResult:
+    """``key`` added to ``structure`` and fitted as a screen is (``loop.screened_params``), from
+    each variant the evidence suggests; the lowest held-out cost."""
+    best = None
+    *needed, effect = parts(key)
+    for values, settings in _candidate_variants(effect, where):
+        trial = structure
+        for e in needed:
+            trial = trial.with_effect(e)
+        trial = trial.with_effect(effect, values, settings)
+        res = fit(predictor, trial, screened_params(key, structure), max_iter=options.screen_iter)
+        if best is None or res.cost_test < best.cost_test:
+            best = res
+    return best
+
+
+def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: Step, named: list[Step],
+             options: DiagnoseOptions, floor_cost: float, say: Callable[[str], None]
+             ) -> tuple[Revision | None, FitResult | None]:
+    """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): its
+    own parameters on their bounds, or, when it is ``related`` to an effect already ``named``,
+    its gain gone against the model without it refitted with more freedom, from where ``after``
+    left the other parameters (the added term may only have carried them to a better optimum).
+    Returns (the refusal or None, that refit of the model without it or None)."""
+    if not named:
+        return None, None
+    own = [p.name for p in EFFECTS[step.effect].params]
+    bound = [n for n in after.on_bound if n in own]
+    if bound:
+        return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
+                        f"passed the acceptance rule with its parameters on their bounds ({', '.join(bound)}): "
+                        "a stand-in, not an estimate"), None
+    earlier = [s.effect for s in named if related(s.effect, step.effect)]
+    if not earlier:
+        return None, None
+    say(f"  {step.effect} acts where {', '.join(earlier)} does: its gain tested against the model without it "
+        "refitted from its values, every parameter free")
+    free = fit(predictor, without(after.structure, step.effects), max_iter=options.fit_iter)
+    ref = _robust_kept(predictor, min(before, free, key=lambda r: r.cost_test), options)
+    _, consistency, failed = acceptance(predictor, ref, after, step.effect, options, floor_cost, options.max_p)
+    say(f"  held-out cost {ref.cost_test:.4g} without {step.effect} refitted, {after.cost_test:.4g} with it "
+        f"(p {consistency['p']:.3g})" + (f"; fails: {', '.join(failed)}" if failed else ""))
+    if not failed:
+        return None, ref
+    return Revision("stand-in", step.effect, ref.cost_test, after.cost_test,
+                    f"re-explains what {', '.join(earlier)} and the rest explain: against the model without it "
+                    f"refitted from its values it fails {', '.join(failed)}"), ref
+
+
+def revise(predictor: Predictor, current: FitResult, steps: list[Step], where: dict, options: DiagnoseOptions,
+           floor_cost: float, say: Callable[[str], None], excluded=()) -> tuple[FitResult, list[Step], list[Revision]]:
+    """Swaps and removals of the named ``steps`` (module doc) until none passes; the revised fit,
+    steps and what was revised."""
+    done: list[Revision] = []
+    for _ in range(2 * len(steps)):  # each pass changes one step; a cycle cannot outlast this
+        change = _removal(predictor, current, steps, options, floor_cost, say)
+        if change is None:
+            change = _swap(predictor, current, steps, where, options, floor_cost, say, excluded)
+        if change is None:
+            break
+        current, steps, revision = change
+        done.append(revision)
+        say(f"  revised: {revision.line}")
+    return current, steps, done
+
+
+def _removal(predictor, current, steps, options, floor_cost, say):
+    """The first named step (oldest first) that, tested as an addition to the model without it,
+    no longer passes; None if each still does. The newest step has just passed that test. A step
+    whose prerequisites a later effect needs loses its effect only, and names them instead."""
+    for i, step in enumerate(steps[:-1]):
+        gone = next((g for g in (step.effects, (step.effect,)) if removable(current.structure, g)), None)
+        if gone is None:
+            continue
+        reduced = without(current.structure, gone)
+        ref = fit(predictor, reduced, screened_params(BUNDLE.join(gone), reduced), max_iter=options.screen_iter)
+        _, consistency, failed = acceptance(predictor, ref, current, step.effect, options, floor_cost, options.max_p)
+        say(f"  removal test of {step.effect}: held-out cost {ref.cost_test:.4g} without it, {current.cost_test:.4g}"
+            f" with it (p {consistency['p']:.3g})" + (f": fails {', '.join(failed)}" if failed else ": still needed"))
+        if failed:
+            refit = _refit(predictor, ref, options)
+            kept = [e for e in step.effects if e not in gone]
+            rest = [] if not kept else [dataclasses.replace(
+                step, effect=kept[-1], prerequisites=kept[:-1], evidence=_evidence(BUNDLE.join(kept), step.where),
+                parameters={p.name: refit.structure.values[p.name] for e in kept for p in EFFECTS[e].params})]
+            return refit, [*steps[:i], *rest, *steps[i + 1:]], Revision(
+                "removal", step.effect, current.cost_test, refit.cost_test,
+                f"given the effects named after it, it fails {', '.join(failed)}")
+    return None
+
+
+def _swap(predictor, current, steps, where, options, floor_cost, say, excluded):
+    """The best swap of a named step for a rival that passes the acceptance rule against the
+    current model; None if none does."""
+    best = None
+    for i, step in enumerate(steps):
+        if not removable(current.structure, [step.effect]):
+            continue
+        reduced = without(current.structure, [step.effect])
+        for key in rivals(step, current.structure, options.candidates, excluded):
+            trial = _fit_variants(predictor, reduced, key, where, options)
+            say(f"  swap {step.effect} -> {key}: held-out cost {current.cost_test:.4g} -> {trial.cost_test:.4g}")
+            if not trial.cost_test < current.cost_test * (1.0 - options.min_gain):
+                continue  # cannot pass the relative gain, not worth the full refit
+            trial = _refit(predictor, trial, options)
+            gain, consistency, failed = acceptance(predictor, current, trial, parts(key)[-1], options, floor_cost,
+                                                   options.max_p)
+            say(f"    refitted: {trial.cost_test:.4g} (p {consistency['p']:.3g})"
+                + (f": fails {', '.join(failed)}" if failed else ": passes"))
+            if not failed and (best is None or trial.cost_test < best[1].cost_test):
+                best = (i, trial, key, consistency)
+    if best is None:
+        return None
+    i, trial, key, consistency = best
+    old = steps[i]
+    *needed, effect = parts(key)
+    new = dataclasses.replace(
+        old, effect=effect, prerequisites=[*old.prerequisites, *needed], evidence=_evidence(key, old.where),
+        parameters={p.name: trial.structure.values[p.name] for e in (*old.prerequisites, *parts(key))
+                    for p in EFFECTS[e].params},
+        alternatives=[a for a in old.alternatives if a.replace(" + ", BUNDLE) != key],
+        consistency=consistency, screen=f"swapped for {old.effect}")
+    return trial, [*steps[:i], new, *steps[i + 1:]], Revision(
+        "swap", old.effect, current.cost_test, trial.cost_test,
+        f"the model with {effect} in its place passes the acceptance rule (p {consistency['p']:.3g})", by=key)
+
+
+def _refit(predictor: Predictor, result: FitResult, options: DiagnoseOptions) -> FitResult:
+    """A revised structure fitted as an added one is: every parameter free (``fit_iter``), then
+    under the robust loss (``options.robust_refit``), each kept only if it predicts the held-out
+    windows better."""
+    full = fit(predictor, result.structure, max_iter=options.fit_iter)
+    best = full if full.cost_test < result.cost_test else result
+    return _robust_kept(predictor, best, options) if options.robust_refit else best
+
+
+def _robust_kept(predictor: Predictor, result: FitResult, options: DiagnoseOptions) -> FitResult:
+    """``result`` refitted under the robust loss if that predicts the held-out windows better."""
+    robust, keep = _robust(predictor, result, options, None)
+    return robust if keep else result
+
+
+def step_models(initial: Structure, final: Structure, steps: list[Step]) -> list[Structure]:
+    """The models before the first step and after each (``report.build``'s labels) as the final
+    fit has them: the final structure without the effects of the steps after each."""
+    added = [s.effects for s in steps]
+    models = [initial]
+    for k in range(1, len(steps)):
+        later = {e for effects in added[k:] for e in effects}
+        models.append(without(final, later))
+    return models + [final] if steps else [initial]

@@ -1,0 +1,141 @@
+"""The search's revision step (diagnosis/revise.py): a named effect swapped for a rival that
+explains the recording better, an effect the later ones made redundant removed, and the
+bookkeeping that keeps steps, rivals and the report's models consistent."""
+from __future__ import annotations
+
+import pytest
+
+from mjjoint.benchmark.cases import GEAR_RATIO, make_case
+from mjjoint.benchmark.score import write_case_recording
+from mjjoint.diagnosis.floor import noise_floor
+from mjjoint.diagnosis.loop import DiagnoseOptions, Step, acceptance, residual_location
+from mjjoint.diagnosis.revise import Revision, related, removable, revise, rivals, stand_in, step_models, without
+from mjjoint.identify.effects import EFFECTS
+from mjjoint.identify.fit import fit
+from mjjoint.identify.structure import Structure
+from mjjoint.identify.windows import Measured, Predictor, WindowDesign
+from mjjoint.recordings import read_recording
+from mjjoint.report.summary import revision_lines
+
+
+def _step(effect: str, prerequisites=(), alternatives=()) -> Step:
+    return Step(effect=effect, evidence=[], where={}, parameters={}, fit_before={}, fit_after={}, gain=0.5,
+                screened={}, alternatives=list(alternatives), prerequisites=list(prerequisites))
+
+
+def test_rivals_act_at_the_same_site_under_a_shared_condition():
+    case = make_case("backlash", 1)
+    s = Structure.create((*case.base_effects, "transmission_hysteresis"), case.truth.nominal, GEAR_RATIO)
+    assert related("backlash", "transmission_hysteresis") and related("input_offset", "friction_asymmetry")
+    assert not related("backlash", "dynamic_friction")  # a shared condition, another site
+    assert rivals(_step("transmission_hysteresis"), s) == ["backlash"]
+    # an effect that needs the one replaced cannot take its place; one the step found
+    # indistinguishable can, wherever it acts
+    assert "dynamic_friction" not in rivals(_step("coulomb_friction"), without(s, ["coulomb_friction"]))
+    assert "input_delay" in rivals(_step("transmission_hysteresis", alternatives=["input_delay"]), s)
+    assert rivals(_step("transmission_hysteresis"), s, excluded=("backlash",)) == []
+
+
+def test_removal_keeps_what_other_effects_need_and_the_models_peel_the_final_fit():
+    case = make_case("backlash", 1)
+    s = Structure.create((*case.base_effects, "backlash"), case.truth.nominal, GEAR_RATIO)
+    assert not removable(s, ["linear_stiffness"]) and removable(s, ["backlash"])
+    reduced = without(s, ["backlash"])
+    assert "backlash" not in reduced.effects and "backlash.width" not in reduced.values
+    assert set(reduced.values) == {p.name for p in reduced.params}
+    base = without(s, ["backlash", "gravity"])
+    models = step_models(base, s, [_step("gravity"), _step("backlash")])
+    assert [("gravity" in m.effects, "backlash" in m.effects) for m in models] == [
+        (False, False), (True, False), (True, True)]
+
+
+@pytest.fixture(scope="module")
+def backlash_recording(tmp_path_factory):
+    """The concealed benchmark's backlash case (8 s, as its CI subset): a play in the gear."""
+    case = make_case("backlash", 1)
+    path = write_case_recording(case, tmp_path_factory.mktemp("revise"), 8.0)
+    rec = read_recording(path, gear_ratio=GEAR_RATIO)
+    return case, Predictor(Measured.from_recording(rec, GEAR_RATIO), WindowDesign(seed=1))
+
+
+def test_a_rival_named_first_is_swapped_for_the_effect_that_explains_the_recording(backlash_recording):
+    case, predictor = backlash_recording
+    # Fewer refit iterations than the command line's and no robust refit: the swap shows without.
+    options = DiagnoseOptions(candidates=("backlash", "transmission_hysteresis", "stribeck_friction",
+                                          "dynamic_friction", "input_delay"), fit_iter=8, robust_refit=False)
+    base = Structure.create(case.base_effects, case.truth.nominal, GEAR_RATIO)
+    # The hysteretic gear forced in first, where the truth is a play.
+    forced = fit(predictor, base.with_effect("transmission_hysteresis"), max_iter=options.fit_iter)
+    where = residual_location(predictor, base)
+    floor_cost = noise_floor(predictor, forced.structure).cost()
+    lines = []
+    current, steps, done = revise(predictor, forced, [_step("transmission_hysteresis")], where, options,
+                                  floor_cost, lines.append)
+    assert [(r.kind, r.effect, r.by) for r in done] == [("swap", "transmission_hysteresis", "backlash")], lines
+    assert [s.effect for s in steps] == ["backlash"] and steps[0].screen == "swapped for transmission_hysteresis"
+    assert "transmission_hysteresis" not in current.structure.effects
+    assert done[0].cost_after < 0.9 * done[0].cost_before == pytest.approx(0.9 * forced.cost_test)
+    width = current.structure.values["backlash.width"]
+    truth = case.truth.values["backlash.width"]
+    assert abs(width / truth - 1.0) < 0.5
+
+
+@pytest.mark.slow
+def test_an_effect_that_only_carries_the_others_to_a_better_fit_is_a_stand_in(backlash_recording):
+    """The play named, its fit stalled; the hysteretic gear added passes the acceptance rule
+    against the stalled fit, and the guard refuses it: fitted freely its parameters end on their
+    bounds; held off them (nearly elastic), the model with the play alone, refitted from the values the addition
+    reached, does at least as well."""
+    case, predictor = backlash_recording
+    options = DiagnoseOptions(fit_iter=8)
+    named = Structure.create((*case.base_effects, "backlash"), case.truth.nominal, GEAR_RATIO)
+    stalled = fit(predictor, named, max_iter=1)
+    # A nearly elastic hysteretic gear, as such stand-ins end (out-of-regime backlash_wide: mu 0.97).
+    trial = named.with_effect("transmission_hysteresis", {"transmission_hysteresis.mu": 0.95,
+                                                          "transmission_hysteresis.x_u": 1e-3})
+    floor_cost = noise_floor(predictor, trial).cost()
+    step, lines = _step("transmission_hysteresis"), []
+    for held in ((), [p.name for p in EFFECTS["transmission_hysteresis"].params]):
+        added = fit(predictor, trial, [p.name for p in trial.params if p.name not in held], max_iter=options.fit_iter)
+        gain, _, failed = acceptance(predictor, stalled, added, step.effect, options, floor_cost, options.max_p)
+        assert not failed and gain > 0.5  # the plain acceptance rule would name it
+        refusal, freer = stand_in(predictor, stalled, added, step, [_step("backlash")], options, floor_cost,
+                                  lines.append)
+        assert refusal is not None and refusal.kind == "stand-in", lines
+        if not held:
+            assert "on their bounds" in refusal.reason and freer is None
+        else:
+            assert "re-explains what backlash" in refusal.reason, refusal
+            assert freer.cost_test <= added.cost_test < stalled.cost_test
+            assert "transmission_hysteresis" not in freer.structure.effects
+    # An effect acting where no named one acts is not second-guessed that way.
+    assert stand_in(predictor, stalled, added, step, [_step("gravity")], options, floor_cost, lines.append) == (
+        None, None)
+
+
+@pytest.mark.slow
+def test_an_effect_the_later_ones_made_redundant_is_removed(backlash_recording):
+    """An input offset named first (the truth has none), then the play: given the play, the
+    offset no longer passes as an addition and is removed; the play stays."""
+    case, predictor = backlash_recording
+    options = DiagnoseOptions(fit_iter=8, robust_refit=False)
+    structure = Structure.create((*case.base_effects, "input_offset", "backlash"), case.truth.nominal, GEAR_RATIO)
+    current = fit(predictor, structure, max_iter=options.fit_iter)
+    floor_cost = noise_floor(predictor, current.structure).cost()
+    lines = []
+    current, steps, done = revise(predictor, current, [_step("input_offset"), _step("backlash")],
+                                  residual_location(predictor, current.structure), options, floor_cost,
+                                  lines.append)
+    assert [(r.kind, r.effect) for r in done] == [("removal", "input_offset")], lines
+    assert [s.effect for s in steps] == ["backlash"] and "input_offset" not in current.structure.effects
+
+
+def test_revisions_are_reported_with_their_costs():
+    revisions = [Revision("swap", "transmission_hysteresis", 0.052, 0.0008, "passes", by="backlash"),
+                 Revision("removal", "input_offset", 0.01, 0.011, "given the effects named after it, it fails x"),
+                 Revision("stand-in", "transmission_hysteresis", 0.011, 0.013, "re-explains what backlash explains")]
+    lines = revision_lines({"revisions": [r.as_dict() for r in revisions]})
+    assert lines == ["transmission_hysteresis replaced by backlash (held-out cost 0.052 -> 0.0008)",
+                     "input_offset removed (held-out cost 0.01 -> 0.011): given the effects named after it, it fails x",
+                     "not named, a stand-in: transmission_hysteresis (re-explains what backlash explains)"]
+    assert revision_lines({}) == []  # a diagnosis.json written before revisions existed
