@@ -45,9 +45,9 @@ FRICTION_STATIC = BY_SECTION["friction"].kind_code("static")
 # and the joint's torque on it at the last evaluation and the other torques on it that the
 # step since implies (kernels.implicit_dof), the link's velocity and the transmission torque at
 # the last evaluation and the other torques on the deflection (kernels.stiffness_limit), the
-# joint's torque on the link at the last evaluation and the other torques on the link dof
-# (the bearing's step, kernels.joint_evaluate). NaN: unknown, after a reset or for states set
-# by hand.
+# joint's torque on the link at the last evaluation and the other torques on the link dof, the
+# last step's and the one's before, which the bearing's step extrapolates (kernels.bearing).
+# NaN: unknown, after a reset or for states set by hand.
 STATE_NAMES = tuple(s for t in TERMS for s in t.states)  # the physical ones, before AT
 Z1, Z2, OMEGA, QR, WSIGN = (STATE_NAMES.index(s) for s in BY_SECTION["friction"].states)
 X = STATE_NAMES.index("x")
