@@ -16,12 +16,54 @@ from mujoco import rollout as mj_rollout
 
 from .assets import load_model
 from .coupling.kernels import joint_traces, settled_states
-from .coupling.layout import NSTATE, STATE_NAMES
+from .coupling.layout import NSTATE, STATE_NAMES, WP, WPL
 from .coupling.plugin import PLUGIN_NAME, block_for
 from .joint import JointParams
 from .params import check, substeps
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+def held_controls(c: np.ndarray, substeps: int, before=0.0) -> np.ndarray:
+    """Per-step controls of per-sample controls ``c`` ((n,) or (n, k)), each held over its sample
+    period, the hold centred on the steps: the step a sample starts takes the mean of that
+    sample and the one before (``before`` for the first).
+
+    Semi-implicit Euler applies a step's force as an impulse at the position the step starts
+    from, so each step stands for the half steps either side of its start. A plain hold puts
+    every change of the input half a step early: an error of the order of h in every signal,
+    the largest error of a linear joint at its lightly damped gear resonance. Centred, positions
+    at the samples are second-order accurate (docs/design.md, "Integration").
+    """
+    c = np.asarray(c, float)
+    out = np.repeat(c, substeps, axis=0)
+    out[::substeps] = 0.5 * (c + np.concatenate([np.broadcast_to(before, c[:1].shape), c[:-1]]))
+    return out
+
+
+def step_held(model: mujoco.MjModel, data: mujoco.MjData, actuators, c, before, substeps: int) -> np.ndarray:
+    """Step one sample period with controls ``c`` on ``actuators`` held over it (``held_controls``;
+    ``before``: the controls of the sample before): the closed loops' per-sample step. Returns
+    the velocities the last step started from (``sample_velocity``'s ``w_before``)."""
+    for row in held_controls(np.asarray(c, float)[None], substeps, before):
+        w_before = data.qvel.copy()
+        data.ctrl[actuators] = row
+        mujoco.mj_step(model, data)
+    return w_before
+
+
+def state_velocity(v, a, h: float):
+    """The velocity a semi-implicit Euler state of step h holds at a sample where the motion has
+    velocity v and acceleration a: the mean over the step that ended there, v - a h / 2 (a
+    state set from measured motion: window starts, prescribed joints)."""
+    return v - 0.5 * h * a
+
+
+def sample_velocity(w: np.ndarray, w_before: np.ndarray) -> np.ndarray:
+    """The velocity at a sample instant from a semi-implicit Euler state's ``w``, the mean over
+    the step that ended there, and ``w_before``, the one of the step before: half a step on,
+    w + (w - w_before) / 2 (second order). Where no step came before (NaN): w."""
+    return np.where(np.isnan(w_before), w, 1.5 * w - 0.5 * w_before)
 
 
 @dataclass(frozen=True)
@@ -93,7 +135,7 @@ class Trace:
     u: np.ndarray          # applied motor torque [N m] (the command clipped to the actuator range)
     q: np.ndarray
     theta: np.ndarray
-    qd: np.ndarray
+    qd: np.ndarray         # motor and link velocities at the sample instants (``sample_velocity``)
     thetad: np.ndarray
     tau: np.ndarray        # transmission torque T [N m, link side]
     friction: np.ndarray   # motor friction torque [N m]
@@ -148,8 +190,9 @@ class Simulator:
         mujoco.mj_getState(self.model, d, out, FULL)
         return out
 
-    def controls(self, u: np.ndarray) -> np.ndarray:
-        """Per-step actuator controls (zero-order hold) for motor torques sampled at the rate.
+    def controls(self, u: np.ndarray, before: np.ndarray | float = 0.0) -> np.ndarray:
+        """Per-step actuator controls for motor torques sampled at the rate, each held over its
+        sample period (``held_controls``; ``before``: the torques held before the first sample).
 
         ``u`` is (n,) for one joint or (n, njoint); each joint's torque becomes its motor
         actuator's control u / k_m (a current when the actuator gear is k_m).
@@ -161,10 +204,11 @@ class Simulator:
         if not np.all(np.isfinite(u2)):
             raise ValueError("u contains NaN or inf")
         ctrl = np.zeros((u2.shape[0] * self.substeps, self.model.nu))
+        first = self.applied(np.broadcast_to(before, u2[:1].shape))[0]
         for j, ji in enumerate(self.joints):
             if ji.actuator < 0:
                 raise ValueError(f"joint instance {j} has no actuator on its motor joint")
-            ctrl[:, ji.actuator] = np.repeat(self.applied(u2)[:, j] / ji.k_m, self.substeps)
+            ctrl[:, ji.actuator] = held_controls(self.applied(u2)[:, j] / ji.k_m, self.substeps, first[j] / ji.k_m)
         return ctrl
 
     def applied(self, u: np.ndarray) -> np.ndarray:
@@ -182,10 +226,12 @@ class Simulator:
         traces = self.traces(states, u)
         return traces[0] if len(traces) == 1 else traces
 
-    def rollout_states(self, u: np.ndarray, initial_state: np.ndarray | None = None) -> np.ndarray:
-        """Full-physics states at the sample instants, (n, nstate); row 0 is the initial state."""
+    def rollout_states(self, u: np.ndarray, initial_state: np.ndarray | None = None,
+                       before: np.ndarray | float = 0.0) -> np.ndarray:
+        """Full-physics states at the sample instants, (n, nstate); row 0 is the initial state.
+        ``before``: the motor torques held before the first sample (a run continued)."""
         x0 = self.initial_state() if initial_state is None else np.asarray(initial_state, float)
-        ctrl = self.controls(u)
+        ctrl = self.controls(u, before)
         state, _ = mj_rollout.rollout(self.model, self.data, x0[None], ctrl[None])
         check_diverged(state[0], x0[0])
         picked = state[0, self.substeps - 1::self.substeps][:-1]
@@ -199,7 +245,7 @@ class Simulator:
             st, (q, qd, theta, thd) = ji.settled(self.model, states)
             tau, fric, load = joint_traces(ji.block, st, q, qd, theta, thd, *ji.steps(self.model))
             out.append(Trace(t=states[:, 0].copy(), u=u2[:, j].copy(), q=q.copy(), theta=theta.copy(),
-                             qd=qd.copy(), thetad=thd.copy(), tau=tau, friction=fric, load_friction=load,
+                             qd=sample_velocity(qd, st[:, WP]), thetad=sample_velocity(thd, st[:, WPL]), tau=tau, friction=fric, load_friction=load,
                              states=st, gear_ratio=ji.gear_ratio, qpos=qpos.copy()))
         return out
 

@@ -5,7 +5,7 @@ import mujoco
 import numpy as np
 
 from .params import check
-from .sim import FULL, Simulator, Trace, check_diverged
+from .sim import FULL, Simulator, Trace, check_diverged, sample_velocity, step_held
 
 
 def track(sim: Simulator, q_ref_link: np.ndarray, kp, kd,
@@ -47,11 +47,11 @@ def track(sim: Simulator, q_ref_link: np.ndarray, kp, kd,
     states = np.empty((len(ref) + 1, len(x0)))
     states[0] = x0
     u = np.empty_like(ref)
+    w_before = np.full(m.nv, np.nan)
     for k in range(len(ref)):
-        u[k] = np.clip(kp * (gear * ref[k] - d.qpos[mq]) + kd * (gear * ref_rate[k] - d.qvel[md]), lo, hi)
-        d.ctrl[act] = u[k] / km
-        for _ in range(sim.substeps):
-            mujoco.mj_step(m, d)
+        w = sample_velocity(d.qvel[md], w_before[md])  # the motor speed at the sample, as the traces give it
+        u[k] = np.clip(kp * (gear * ref[k] - d.qpos[mq]) + kd * (gear * ref_rate[k] - w), lo, hi)
+        w_before = step_held(m, d, act, u[k] / km, u[k - 1] / km if k else 0.0, sim.substeps)
         mujoco.mj_getState(m, d, states[k + 1], FULL)
     check_diverged(states[1:], x0[0])
     return sim.traces(states[:-1], u)

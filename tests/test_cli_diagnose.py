@@ -141,9 +141,11 @@ def test_when_nothing_is_missing_it_says_so(files, capsys):
     floor = d["noise_floor"]["nrmse"]
     assert all(d["final_fit"]["nrmse_heldout"][s] <= d["noise_floor"]["explained_ratio"] * floor[s] for s in floor)
     # The final model is the base structure re-estimated under the robust loss over windows
-    # (docs/diagnosis.md, loop step 5): no effect added, nearly the same fit of this exact recording.
+    # (docs/diagnosis.md, loop step 5): no effect added, nearly the same fit of this exact recording
+    # (within 5 %, or 5 % of the noise floor where both lie far below it).
     before, after = d["initial_fit"]["nrmse_heldout"], d["final_fit"]["nrmse_heldout"]
-    assert before.keys() == after.keys() and all(after[k] == pytest.approx(before[k], rel=0.05) for k in before)
+    assert before.keys() == after.keys()
+    assert all(after[k] == pytest.approx(before[k], rel=0.05, abs=0.05 * floor[k]) for k in before)
     # and it is only reported if it predicts the held-out windows at least as well (loop step 5)
     assert d["final_fit"]["cost_heldout"] <= d["initial_fit"]["cost_heldout"]
     assert capsys.readouterr().out.startswith("verdict: explained to the noise: nothing is missing")

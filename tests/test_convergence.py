@@ -1,34 +1,47 @@
 """The simulated joint's answer at the shipped step against a 100x finer step
-(``experiments.convergence``): 2 % where the physics is resolvable at 0.5 ms, first order."""
+(``experiments.convergence``): 2 % where the physics is resolvable at 0.5 ms, first order or
+better."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
+from mjjoint import sim as sim_module
 from mjjoint.experiments.convergence import SHIPPED_STEP, Case, cases, measure, rel_rms
 
 CASES = {c.name: c for c in cases()}
 SLIDING = [name for name in CASES if name.startswith("free rotor") and name.endswith("1 Hz")]
 
 
+# Below this difference at the shipped step the error's terms of several orders mix (an error
+# whose sign turns between h and h / 4): the order is not read there.
+RESOLVED = 0.005
+
+
+def converges(errors: tuple[float, ...], order: float) -> bool:
+    """First order at least, or already within RESOLVED at the shipped step."""
+    return errors[0] < RESOLVED or (order > 0.6 and errors[-1] < errors[0])
+
+
 @pytest.mark.parametrize("name", [name for name, c in CASES.items() if not c.events])
-def test_every_case_converges_at_first_order(name):
-    """Semi-implicit Euler is first order: halving the step about halves the difference from
-    the 100x finer step (an ill-posed model, or a term stepped inconsistently, does not)."""
+def test_every_case_converges(name):
+    """Semi-implicit Euler is first order: quartering the step about quarters the difference
+    from the 100x finer step (an ill-posed model, or a term stepped inconsistently, does not)."""
     c = measure(CASES[name])
-    assert c.order > 0.6 and c.speed_half < c.speed, c
+    assert converges(c.torque, c.order) and converges(c.speed, c.speed_order), c
 
 
 @pytest.mark.parametrize("name", SLIDING)
 def test_free_rotor_at_the_shipped_step_is_the_converged_one(name):
     c = measure(CASES[name])
-    assert c.speed < 0.02 and c.torque < 0.02, c
-    assert c.order > 0.6, c  # first order (semi-implicit Euler): halving h about halves the error
+    assert c.speed[0] < 0.02 and c.torque[0] < 0.02, c
+    assert converges(c.torque, c.order), c
 
 
 def test_a_stopping_rotor_converges_at_first_order():
     """The impulse's error is its stop instant: above 2 % at 0.5 ms, halved with the step."""
     c = measure(CASES["free rotor, 2SEP, 2 ms impulse"])
-    assert c.order > 0.9 and c.speed_half < 0.6 * c.speed, c
+    assert c.order > 0.9 and c.speed[1] < 0.6 * c.speed[0], c
 
 
 @pytest.mark.parametrize("name", [name for name, c in CASES.items() if c.events])
@@ -46,18 +59,32 @@ def test_stick_slip_cases_are_well_posed_and_converge(name):
 
 
 @pytest.mark.parametrize("name", ["shipped arm, B = 0, regularised bearing, 3 s down-chirp",
-                                  "shipped arm, static map, regularised bearing, 3 s down-chirp"])
+                                  "shipped arm, static map, regularised bearing, 3 s down-chirp",
+                                  "shipped arm, linear joint without friction, 3 s down-chirp"])
 def test_shipped_chirp_without_the_lag_nor_sticking(name):
-    """Without the 2SEP lag and without the bearing's stick events, the shipped chirp is within
-    3 % (what is left is there without any friction: the linear joint's discretisation);
-    docs/design.md."""
+    """Without the 2SEP lag and without the bearing's stick events, the shipped chirp at 0.5 ms
+    is within 2 % of the converged one (the linear joint's own: 0.5 %, the input held centred
+    on the steps, ``sim.held_controls``); docs/design.md."""
     c = measure(CASES[name])
-    assert c.speed < 0.01 and c.torque < 0.03, c
+    assert c.speed[0] < 0.01 and c.torque[0] < 0.02, c
 
 
 @pytest.mark.parametrize("name", ["shipped arm, B = 0, 3 s down-chirp", "shipped arm, static map, 3 s down-chirp"])
 def test_the_sticking_bearing_adds_events_that_converge(name):
     """The sticking bearing's stops and breakaways, each a step early or late, add to the chirp's
-    difference but not to its order: halving the step halves it."""
+    difference but not to its order: halving the step halves it; within 2 % at 0.5 ms."""
     c = measure(CASES[name])
-    assert c.speed < 0.01 and c.order > 0.9 and c.torque_half < 0.6 * c.torque, c
+    assert c.speed[0] < 0.01 and c.torque[0] < 0.02 and c.order > 0.9 and c.torque[1] < 0.6 * c.torque[0], c
+
+
+def test_a_plainly_held_input_is_half_a_step_early():
+    """Held plainly over each sample's steps, the input acts half a step early: a first-order
+    error that dominated the linear joint's chirp (3.4 % in tau at 0.5 ms); centred on the
+    steps (``sim.held_controls``) it is second order."""
+    case = CASES["shipped arm, linear joint without friction, 3 s down-chirp"]
+    ref = case.plant(SHIPPED_STEP / 100, case.joint, case.u)
+    centred = rel_rms(case.plant(SHIPPED_STEP, case.joint, case.u).tau, ref.tau)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(sim_module, "held_controls", lambda c, substeps, before=0.0: np.repeat(np.asarray(c, float), substeps, axis=0))
+        plain = rel_rms(case.plant(SHIPPED_STEP, case.joint, case.u).tau, ref.tau)
+    assert plain > 0.02 and centred < 0.25 * plain, (plain, centred)

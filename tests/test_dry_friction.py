@@ -120,14 +120,24 @@ def rotor_under(amplitude: float, v_eps: float, h: float = 5e-4, fc: float = 0.0
     return free_rotor(h, joint, amplitude * fs * np.sin(2 * np.pi * t))
 
 
-def test_a_rotor_below_break_away_never_moves():
-    """0.8 Fs is above the Coulomb level but below break-away: the exact map holds the rotor;
-    the regularised one (tanh over 1 rad/s) lets it spin up."""
+def lag_bound(trace, h: float = 5e-4) -> float:
+    """The largest velocity a held rotor takes in a step: the rotor's other torques (the drive)
+    are known one step late (``kernels.known_other``), so each step's change of the held input,
+    up to half a sample's change (``sim.held_controls``), moves it by h/J times that change; the
+    sample's velocity extrapolates two such steps (``sim.sample_velocity``)."""
+    return 2.0 * h / ArmSpec().motor_inertia * 0.5 * np.abs(np.diff(trace.u)).max()
+
+
+def test_a_rotor_below_break_away_holds_to_within_the_drives_one_step_lag():
+    """0.8 Fs is above the Coulomb level but below break-away: the exact map holds the rotor
+    but for the one-step lag of the drive it sees, a creep that vanishes at first order with
+    the step; the regularised one (tanh over 1 rad/s) lets it spin up."""
     held = rotor_under(0.8, 0.0)
-    assert np.abs(held.qd).max() < 1e-12
-    # the friction takes the whole drive, as the last step showed it (the trace's row i is
-    # evaluated before the input of sample i acts)
-    assert np.abs(held.friction[1:] - held.u[:-1]).max() < 1e-12
+    assert np.abs(held.qd).max() <= lag_bound(held) * (1 + 1e-9)
+    finer = rotor_under(0.8, 0.0, h=2.5e-4)
+    assert np.ptp(finer.q) < 0.6 * np.ptp(held.q) and np.ptp(held.q) < 2e-3  # against 10 rad and more sliding
+    # the friction takes the whole drive, as the last step showed it, to the same lag (measured 0.3 %)
+    assert np.abs(held.friction[1:] - held.u[:-1]).max() <= 0.01 * np.abs(held.u).max()
     assert np.abs(rotor_under(0.8, 1.0).qd).max() > 1.0
 
 
@@ -142,6 +152,6 @@ def test_exact_map_is_stable_at_any_friction_level():
     """Fc 25x the shipped rotor's: a regularised sign would need v_eps > 10 rad/s at 0.5 ms
     (the drive stays inside the amplifier's 5 N m)."""
     held = rotor_under(0.9, 0.0, fc=2.0, fs=3.0)
-    assert np.all(np.isfinite(held.qd)) and np.abs(held.qd).max() < 1e-12 * 3.0 * 5e-4 / 5e-5  # round-off of h Fs / J
+    assert np.all(np.isfinite(held.qd)) and np.abs(held.qd).max() <= lag_bound(held) * (1 + 1e-9)
     slides = rotor_under(1.5, 0.0, fc=2.0, fs=3.0)
     assert np.all(np.isfinite(slides.qd)) and np.abs(slides.qd).max() > 1.0

@@ -224,14 +224,16 @@ def test_lab_frf_masks_the_pulse_spectral_zero(frfs):
 
 def test_lab_load_shock_sees_the_rotor_through_the_gear(linear_frfs):
     # W/T = -1/(N (J s + sigma)): the motor feels the load only through T, whatever the load does.
-    # Sampled at the step rate, s is the explicit step's (z - 1)/h, z = exp(j w h).
+    # Sampled at the step rate, s is the explicit step's (z - 1)/h, z = exp(j w h), and the
+    # velocity at a sample is the state's half a step on, 1.5 - 0.5 / z of it (sim.sample_velocity).
     shock = linear_frfs.shock
     band = (shock.f >= 5) & (shock.f <= 100) & np.isfinite(shock.frf)
     assert band.sum() > 100
     sigma = linearised.LINEAR_JOINT.friction.sigma
     h = 1 / lab.FRF_RATE
-    s = (np.exp(2j * np.pi * shock.f[band] * h) - 1) / h
-    admittance = -1 / (shock.trace.gear_ratio * (s * linear_frfs.motor_inertia + sigma))
+    z = np.exp(2j * np.pi * shock.f[band] * h)
+    s = (z - 1) / h
+    admittance = -(1.5 - 0.5 / z) / (shock.trace.gear_ratio * (s * linear_frfs.motor_inertia + sigma))
     assert np.abs(shock.frf[band] / admittance - 1).max() < 0.02
 
 

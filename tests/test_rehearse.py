@@ -45,7 +45,7 @@ def test_the_integral_removes_what_gravity_leaves_of_a_link_step():
     """The bearing's dry friction left out (it holds the link anywhere within its band, whatever
     the loop): what the PD leaves is gravity's, and the integral removes it."""
     gravity_only = ModelFile(joint=JointParams(load_friction=LoadFriction(fc=0.0))).compile()
-    ref = Step(amplitude=0.15, t0=0.2).sample(RATE, 3.0)
+    ref = Step(amplitude=0.15, t0=0.2).sample(RATE, 5.0)  # the integral's time constant is seconds
     offset = {kind: abs(np.mean(ref[-300:] - run_loop(gravity_only, ref, Controller.default(kind, "link"), Sensors(),
                                                       RATE).columns["theta"][-300:])) for kind in ("pd", "pid")}
     assert offset["pid"] < 0.75 * offset["pd"]

@@ -16,6 +16,7 @@ from mjjoint.identify.fit import window_costs
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign, window_starts
 from mjjoint.recordings import Recording
+from mjjoint.sim import step_held
 
 from test_drive import FRICTION, TRUTH, drive_model
 
@@ -77,8 +78,7 @@ def _stepped_drive_recording() -> Recording:
     q = np.empty(n)
     for i in range(n):
         q[i] = np.round(d.qpos[0] / 1e-6) * 1e-6
-        d.ctrl[0] = u[i] / TRUTH.k_m
-        mujoco.mj_step(model, d)
+        step_held(model, d, 0, u[i] / TRUTH.k_m, u[i - 1] / TRUTH.k_m if i else 0.0, 1)
     return Recording(t=t, u=u, q=q, theta=q)
 
 
@@ -94,10 +94,10 @@ def test_the_true_model_predicts_step_windows_once_their_starts_are_moved(monkey
     assert np.all(grid.starts % 500 == 0) and moved.starts[1] == 500 - 20
     on_grid = window_costs(grid, truth, np.arange(len(grid.starts)))
     off_steps = window_costs(moved, truth, np.arange(len(moved.starts)))
-    # Every grid window starts on a step here: the typical one is missed 25x less once moved
-    # (measured), the mean 4.5x less (the rest: windows whose motion sticks and slips).
+    # Every grid window starts on a step here: the typical one is missed 16x less once moved
+    # (measured), the mean 2.7x less (the rest: windows whose motion sticks and slips).
     assert np.median(off_steps) < 0.1 * np.median(on_grid)
-    assert np.mean(off_steps) < 0.33 * np.mean(on_grid)
+    assert np.mean(off_steps) < 0.5 * np.mean(on_grid)
 
 
 def test_stacked_logs_are_tiled_afresh_from_each_join():

@@ -27,7 +27,8 @@ def rollout_chunked(sim: Simulator, u: np.ndarray, chunk: int = CHUNK_SAMPLES,
     parts = []
     for k0 in range(0, n, chunk):
         k1 = min(k0 + chunk, n)
-        states = sim.rollout_states(u[k0:k1 + 1], x)  # past the end the slice just stops at n
+        # past the end the slice just stops at n
+        states = sim.rollout_states(u[k0:k1 + 1], x, u[k0 - 1] if k0 else 0.0)
         if k1 < n:
             x, states = states[-1], states[:-1]
         parts.append(states)

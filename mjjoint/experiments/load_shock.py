@@ -22,7 +22,7 @@ import numpy as np
 from ..assets.builder import ArmSpec, build_arm, load_model
 from ..excitation import Impulse
 from ..joint import JointParams
-from ..sim import Simulator, Trace
+from ..sim import Simulator, Trace, held_controls
 from .signals import excited, impulse_frf
 
 # [N m] on the output hinge for 1.5 ms: T peaks near 75 N m, T/N = 0.47 N m slides the motor
@@ -46,12 +46,13 @@ class ShockedArm(Simulator):
         super().__init__(load_model(spec), sample_rate=sample_rate)
         self.shock = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_ACTUATOR, SHOCK_ACTUATOR)
 
-    def controls(self, u: np.ndarray) -> np.ndarray:
+    def controls(self, u: np.ndarray, before=0.0) -> np.ndarray:
         u = np.asarray(u, float)
         if u.ndim != 2 or u.shape[1] != 2:
             raise ValueError(f"u must be (n, 2): motor torque and load-side torque, got shape {u.shape}")
-        ctrl = super().controls(u[:, 0])
-        ctrl[:, self.shock] = np.repeat(u[:, 1], self.substeps)
+        motor, shock = np.broadcast_to(before, (2,))
+        ctrl = super().controls(u[:, 0], motor)
+        ctrl[:, self.shock] = held_controls(u[:, 1], self.substeps, shock)
         return ctrl
 
 

@@ -20,6 +20,7 @@ from ..assets import load_model
 from ..coupling.plugin import PLUGIN_NAME, register
 from ..joint import JointParams
 from ..params import substeps
+from ..sim import held_controls, sample_velocity
 
 
 def plugin_block(joint: JointParams) -> str:
@@ -74,8 +75,11 @@ def rollout(model: mujoco.MjModel, u: np.ndarray, sample_rate: float) -> Samples
     data = mujoco.MjData(model)
     x0 = np.empty(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
     mujoco.mj_getState(model, data, x0, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    ctrl = np.repeat(np.asarray(u, float), sub)[:, None]
+    ctrl = held_controls(u, sub)[:, None]
     state, _ = mj_rollout.rollout(model, data, x0[None], ctrl[None])
-    states = np.vstack([x0[None], state[0, sub - 1::sub][:-1]])
+    every = np.vstack([x0[None], state[0]])  # row i: after i steps
     nq, nv = model.nq, model.nv
-    return Samples(t=states[:, 0], qpos=states[:, 1:1 + nq], qvel=states[:, 1 + nq:1 + nq + nv])
+    at = sub * np.arange(len(u))
+    before = np.vstack([np.full((1, nv), np.nan), every[at[1:] - 1, 1 + nq:1 + nq + nv]])
+    return Samples(t=every[at, 0], qpos=every[at, 1:1 + nq],
+                   qvel=sample_velocity(every[at, 1 + nq:1 + nq + nv], before))

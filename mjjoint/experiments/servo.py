@@ -17,6 +17,7 @@ from ..identify.initial import SLOPE_STEP
 from ..joint import JointParams
 from ..physics.stribeck import StaticFriction
 from ..recordings import Recording
+from ..sim import step_held
 
 
 @dataclass(frozen=True)
@@ -50,8 +51,7 @@ def servo_recording(servo: Servo, duration: float = 6.0) -> Recording:
     for i in range(len(t)):
         q[i] = d.qpos[0]
         u[i] = j * w * w * (ref[i] - q[i]) - 1.4 * j * w * d.qvel[0]
-        d.ctrl[0] = u[i]
-        mujoco.mj_step(model, d)
+        step_held(model, d, 0, u[i], u[i - 1] if i else 0.0, 1)
     return Recording(t=t, u=u, q=q, theta=q)
 
 

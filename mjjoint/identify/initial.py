@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import butter, csd, filtfilt, welch
 
+from ..sim import held_controls
 from .effects import Param
 
 # The orders the catalogue's values are set for: the lab arm's, the geometric middle of its
@@ -121,6 +122,9 @@ def estimate(measured, link_inertia: float | None = None, arm=None) -> Estimate:
     rate = lambda x: np.gradient(x, 1.0 / m.rate)  # noqa: E731
     v = rate(smooth(m.q))
     a = rate(v)
+    # A held sample acts over the period after it: about a sample instant, the mean of it and the
+    # one before (``sim.held_controls``) is what the motion there answers to.
+    u = held_controls(m.u, 1, m.u[0])
     guard = int(round(m.rate / CUTOFF))  # the low-pass's reach: one period of its cutoff
     force = _positive(amplitude(m.u), 1.0)
     speed = _positive(amplitude(v), 1.0)
@@ -128,9 +132,9 @@ def estimate(measured, link_inertia: float | None = None, arm=None) -> Estimate:
     geared = m.theta is not None
     resonance = None
     if not geared:
-        values.update(_motor_regression(smooth(m.u), v, a, speed, guard))
+        values.update(_motor_regression(smooth(u), v, a, speed, guard))
     elif m.tau is not None:
-        values.update(_motor_regression(smooth(m.u) - smooth(m.tau) / m.gear_ratio, v, a, speed, guard))
+        values.update(_motor_regression(smooth(u) - smooth(m.tau) / m.gear_ratio, v, a, speed, guard))
         delta = smooth(m.delta)
         values.update(_stiffness_regression(delta, rate(delta), smooth(m.tau)))
         if arm is not None:
@@ -140,7 +144,7 @@ def estimate(measured, link_inertia: float | None = None, arm=None) -> Estimate:
         # No gear torque: the rigid joint's equation, its inertia J_m + J_l / N^2, the link's
         # gravity torque as two more columns (its zero angle unknown).
         gravity = np.column_stack([np.sin(m.theta), np.cos(m.theta)])
-        values.update(_motor_regression(smooth(m.u), v, a, speed, guard, gravity))
+        values.update(_motor_regression(smooth(u), v, a, speed, guard, gravity))
         j_rigid = values.pop("inertia.motor", None)
         j_link = None if link_inertia is None else link_inertia / m.gear_ratio ** 2
         if j_rigid is not None and j_link is not None and j_rigid > j_link:

@@ -36,7 +36,7 @@ from ..coupling.mjlog import mujoco_log_silenced
 from ..coupling.plugin import register_model
 from ..params import substeps
 from ..physics.twosep import TwoSEP
-from ..sim import FULL, joint_indices
+from ..sim import FULL, joint_indices, state_velocity
 from .structure import Structure
 
 SIGNALS = ("q", "delta", "tau")
@@ -126,6 +126,21 @@ class Measured:
         """(first, end) sample of each recording stacked here (one pair for a single recording)."""
         bounds = [0, *self.joins, len(self.t)]
         return list(zip(bounds[:-1], bounds[1:]))
+
+    def step_velocity(self, name: str, h: float, at: np.ndarray) -> np.ndarray:
+        """The velocity of ``name`` (q or theta) at samples ``at`` (fractional: interpolated) as a
+        semi-implicit Euler state of step h holds it (``sim.state_velocity``). With the input
+        held centred on the steps (``Predictor._controls``) the positions are then second-order
+        accurate at the samples."""
+        v = self.qd if name == "q" else self.thetad
+        samples = np.arange(len(v))
+        return state_velocity(np.interp(at, samples, v), np.interp(at, samples, self._acceleration[name]), h)
+
+    @cached_property
+    def _acceleration(self) -> dict[str, np.ndarray]:
+        dt = 1.0 / self.rate
+        acc = lambda x: savgol_filter(x, _sg_window(dt), VELOCITY_ORDER, deriv=2, delta=dt)  # noqa: E731
+        return {k: self.per_segment(acc, x) for k, x in (("q", self.q), ("theta", self.theta)) if x is not None}
 
     def per_segment(self, f, x: np.ndarray) -> np.ndarray:
         """``f`` applied to each segment of ``x`` on its own: no filter or operator runs across a join."""
@@ -462,12 +477,13 @@ class Predictor:
         m = self.m
         x0[:, 0] = 0.0
         x0[:, 1 + ji.motor_qpos] = m.q[i0]
-        x0[:, 1 + model.nq + ji.motor_dof] = m.qd[i0]
+        h = model.opt.timestep
+        x0[:, 1 + model.nq + ji.motor_dof] = m.step_velocity("q", h, i0)
         if ji.link_qpos >= 0:
             at = np.clip(i0 + skew * m.rate, 0, len(m.t) - 1)
             samples = np.arange(len(m.t))
             x0[:, 1 + ji.link_qpos] = np.interp(at, samples, m.theta)
-            x0[:, 1 + model.nq + ji.link_dof] = np.interp(at, samples, m.thetad)
+            x0[:, 1 + model.nq + ji.link_dof] = m.step_velocity("theta", h, at)
         # Flexible segments of the link move with the hub at the window start.
         states = steady_states(ji.params, self._motion(i0))
         # The internal states are the model's memory of the motion, run from the recording's
@@ -574,12 +590,14 @@ class Predictor:
             return
         m = self.m
         lead = int(round(FLEX_LEAD * m.rate))
-        seen = []  # per job: (state column, measured signal) of the encoders' joints
+        seen = []  # per job: (state column, its measured values (lead, starts)) of the encoders' joints
         for job in jobs:
             model, ji = job.model, job.ji
-            cols = [(1 + ji.motor_qpos, m.q), (1 + model.nq + ji.motor_dof, m.qd)]
+            h = model.opt.timestep
+            at = job.at[None, :] + np.arange(lead)[:, None]
+            cols = [(1 + ji.motor_qpos, m.q[at]), (1 + model.nq + ji.motor_dof, m.step_velocity("q", h, at))]
             if ji.link_qpos >= 0:
-                cols += [(1 + ji.link_qpos, m.theta), (1 + model.nq + ji.link_dof, m.thetad)]
+                cols += [(1 + ji.link_qpos, m.theta[at]), (1 + model.nq + ji.link_dof, m.step_velocity("theta", h, at))]
             seen.append(cols)
         models = [job.model for job in jobs for _ in job.at]
         ends = np.cumsum([len(job.at) for job in jobs])
@@ -588,7 +606,7 @@ class Predictor:
         for k in range(lead):  # one sample at a time, the encoders' joints put back on the record
             for part, job, cols in zip(parts, jobs, seen):
                 for col, meas in cols:
-                    part[:, col] = meas[job.at + k]
+                    part[:, col] = meas[k]
             ctrl = np.concatenate([self._controls(job.model, job.at + k, 2, job.delay, job.ji) for job in jobs])
             for a, b, state in self._rollouts(models, x, ctrl):
                 x[a:b] = state[:, -1]
@@ -620,17 +638,18 @@ class Predictor:
 
     def _controls(self, model, i0: np.ndarray, n: int, delay: float, ji) -> np.ndarray:
         """Per-step controls of ``n``-sample runs from samples ``i0``: the zero-order-held input
-        averaged over [t - d, t - d + h].
+        averaged over [t - d - h/2, t - d + h/2], the half steps a step's impulse stands for
+        (``sim.held_controls``, which this equals for d = 0).
 
-        For d = 0 this is exactly the held sample; for d > 0 it is the torque a delayed hold
-        delivers over the step, continuous in d so the delay can be fitted by gradients. Before
-        its recording's first sample (the start of the record or a join) the input is zero.
+        For d > 0 it is the torque a delayed hold delivers, continuous in d so the delay can be
+        fitted by gradients. Before its recording's first sample (the start of the record or a
+        join) the input is zero.
         """
         sub = self._substeps(model)
         h = model.opt.timestep
         m = self.m
         knots, cum = self._held_input
-        tk = m.t[i0][:, None] + h * np.arange((n - 1) * sub)[None, :] - delay
+        tk = m.t[i0][:, None] + h * np.arange((n - 1) * sub)[None, :] - delay - 0.5 * h
         # A delayed window at a join would otherwise take the previous recording's input.
         first = np.array([a for a, _ in m.segments])
         begin = m.t[first[np.searchsorted(first, i0, side="right") - 1]][:, None]

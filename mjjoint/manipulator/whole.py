@@ -30,7 +30,7 @@ from ..assets.serial_file import SerialArmFile
 from ..coupling.plugin import register_model
 from ..identify.structure import Structure
 from ..identify.windows import Measured, Predictor, WindowDesign
-from ..sim import FULL, joint_indices
+from ..sim import FULL, joint_indices, state_velocity
 
 # Armature of the prescribed dofs [kg m^2]: 1e6 puts the other joints' response to joint j and
 # to their own forces below 1e-8 of their motion on the shipped arms (inertias 1e-5 to 1e-1).
@@ -159,8 +159,8 @@ class ArmPredictor(Predictor):
 
     def _measured_others(self, model, i0: np.ndarray, x: np.ndarray) -> np.ndarray:
         """``x`` (state rows at samples ``i0``) with the other joints put on their measured motion."""
-        for qadr, dof, (p, v, _), _ in self._others(model):
-            x[:, 1 + qadr], x[:, 1 + model.nq + dof] = p[i0], v[i0]
+        for qadr, dof, (p, v, a), _ in self._others(model):
+            x[:, 1 + qadr], x[:, 1 + model.nq + dof] = p[i0], state_velocity(v[i0], a[i0], model.opt.timestep)
         return x
 
     def _flexible_rows(self, model, ji, i0: np.ndarray) -> np.ndarray:
@@ -193,8 +193,9 @@ class ArmPredictor(Predictor):
             hq, hv = np.zeros((n, len(qadr))), np.zeros((n, len(vadr)))
             x = Predictor._initial_states(self, start, np.array([0]), sji)
             x[:, 1 + qadr] = start.qpos0[qadr]
-            put = [(1 + sji.motor_qpos, m.q), (1 + start.nq + sji.motor_dof, m.qd),
-                   (1 + sji.link_qpos, m.theta), (1 + start.nq + sji.link_dof, m.thetad)]
+            every, h = np.arange(n), start.opt.timestep
+            put = [(1 + sji.motor_qpos, m.q), (1 + start.nq + sji.motor_dof, m.step_velocity("q", h, every)),
+                   (1 + sji.link_qpos, m.theta), (1 + start.nq + sji.link_dof, m.step_velocity("theta", h, every))]
             ctrl = self._controls(start, np.array([0]), n, 0.0, sji)[0]
             sub = self._substeps(start)
             d = mujoco.MjData(start)
@@ -217,9 +218,9 @@ class ArmPredictor(Predictor):
         ctrl = super()._controls(model, i0, n, delay, ji)
         at = i0[:, None] + np.arange(ctrl.shape[1])[None, :] / self._substeps(model)  # each step's start [samples]
         samples = np.arange(len(self.m.t))
-        w = 2 * math.pi * FOLLOW_HZ
+        w, h = 2 * math.pi * FOLLOW_HZ, model.opt.timestep
         for _, _, (p, v, a), act in self._others(model):
-            ctrl[:, :, act] = np.interp(at, samples, a + w * w * p + 2 * w * v)
+            ctrl[:, :, act] = np.interp(at, samples, a + w * w * p + 2 * w * state_velocity(v, a, -h))
         return ctrl
 
 

@@ -18,7 +18,7 @@ from ..coupling.kernels import joint_catch_up, transmitted
 from ..coupling.layout import NSTATE
 from ..joint import JointParams
 from ..params import substeps
-from ..sim import FULL, joint_indices
+from ..sim import FULL, joint_indices, step_held
 from .controller import Controller
 from .reference import LabProgram, on_side
 from .sensors import Sensors
@@ -81,9 +81,7 @@ def run_loop(model: mujoco.MjModel, theta_ref: np.ndarray, controller: Controlle
         cols["t"][i], cols["u"][i], cols["q"][i], cols["theta"][i], cols["tau"][i] = data.time, u, q, th, tau_m
         if states is not None:
             mujoco.mj_getState(model, data, states[i], FULL)
-        data.ctrl[ji.actuator] = u / ji.k_m
-        for _ in range(sub):
-            mujoco.mj_step(model, data)
+        step_held(model, data, ji.actuator, u / ji.k_m, cols["u"][i - 1] / ji.k_m if i else 0.0, sub)
         if data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:  # MuJoCo reset the data
             raise ValueError(f"closed-loop simulation diverged near t = {cols['t'][i]:.3f} s "
                              "(lower the gains or the reference)")
