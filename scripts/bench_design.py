@@ -14,6 +14,7 @@ tied: costs within TIE), share where the design beats the chirp, limits ever exc
     python scripts/bench_design.py                          # 3 pairs x 2 sides x 3 seeds
     python scripts/bench_design.py --pairs offset_asymmetry --seeds 5 --json out.json
     python scripts/bench_design.py --loop                   # references for a PD on the motor
+    python scripts/bench_design.py --loop --tied-only       # design only the draws that tied
 """
 from __future__ import annotations
 
