@@ -14,6 +14,7 @@ tied: costs within TIE), share where the design beats the chirp, limits ever exc
     python scripts/bench_design.py                          # 3 pairs x 2 sides x 3 seeds
     python scripts/bench_design.py --pairs offset_asymmetry --seeds 5 --json out.json
     python scripts/bench_design.py --loop                   # references for a PD on the motor
+    python scripts/bench_design.py --loop --tied-only       # design only the draws that tied
 """
 from __future__ import annotations
 
@@ -23,7 +24,9 @@ import json
 import os
 import time
 
-from mjjoint.benchmark.design_cases import PAIRS, make_design_case, run_case
+import numpy as np
+
+from mjjoint.benchmark.design_cases import PAIRS, fit_rivals, make_design_case, run_case, tie
 from mjjoint.design import Limits, SearchOptions
 from mjjoint.rehearse import Controller
 
@@ -31,9 +34,21 @@ LIMITS = Limits(max_torque=0.2, max_speed=80.0, angle_range=1.0, duration=8.0)
 TIE = 0.05  # a draw counts where the worse rival's original held-out cost is within 5 % of the better's
 
 
-def tie(r: dict) -> float:
-    costs = list(r["original_heldout"].values())
-    return max(costs) / min(costs) - 1
+def calibration(results: list[dict]) -> None:
+    """How far each prediction of the decision's log-likelihood ratio is from the realised one,
+    over the designed draws named correctly (the realised ratio then positive): the median ratio
+    predicted / realised, its range, and the share within a factor of 10 either way."""
+    ok = [r for r in results if r.get("correct") and r.get("rehearsed") is not None and r["llr"] > 0]
+    for name, key in (("D held-out", "D_heldout"), ("rehearsed (truth's side)", "rehearsed_truth_side"),
+                      ("rehearsed (min)", "rehearsed")):
+        ratios = np.array([r[key] / r["llr"] for r in ok])
+        pos = ratios[ratios > 0]
+        if not len(pos):
+            continue
+        within = np.mean((pos >= 0.1) & (pos <= 10.0)) * len(pos) / len(ratios)
+        print(f"calibration, {name} / realised over {len(ratios)} correct draws: median {np.median(pos):.3g} "
+              f"({pos.min():.2g} to {pos.max():.2g}; {len(ratios) - len(pos)} not positive), "
+              f"within a factor 10 in {within:.0%}")
 
 
 def main() -> None:
@@ -48,6 +63,8 @@ def main() -> None:
     ap.add_argument("--rehearse", type=int, default=2, help="best inputs whose decision is rehearsed")
     ap.add_argument("--loop", action="store_true", help="closed loop: design references for a PD on the motor")
     ap.add_argument("--duration", type=float, default=LIMITS.duration, help="original and designed record [s]")
+    ap.add_argument("--tied-only", action="store_true",
+                    help="design only the draws whose original recording tied (the others: one line, no design)")
     ap.add_argument("--json", help="write every case's result here")
     args = ap.parse_args()
     options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws, rehearse=args.rehearse)
@@ -55,22 +72,28 @@ def main() -> None:
     limits = dataclasses.replace(LIMITS, duration=args.duration)
     print(f"limits: {limits}; search: {options}; loop: {loop}; load average {os.getloadavg()[0]:.1f}")
     header = ("pair", "truth", "seed", "tie", "family", "D", "D chirp", "truth usage", "D held-out",
-              "rehearsed", "realised", "winner", "p")
+              "rehearsed (min)", "rehearsed (truth's side)", "realised", "winner", "p")
     print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
     results = []
     start = time.perf_counter()
     for pair in args.pairs.split(","):
         for seed in range(args.first_seed, args.first_seed + args.seeds):
             for side in (0, 1):
-                r = run_case(make_design_case(pair, side, seed, args.duration), limits, options,
-                             max_iter=args.max_iter, loop=loop)
+                case = make_design_case(pair, side, seed, args.duration)
+                fitted = fit_rivals(case, args.max_iter)
+                if args.tied_only and tie(fitted[1]) > TIE:
+                    print(f"| {pair} | {case.truth_effect} | {seed} | {tie(fitted[1]):.1%} | (did not tie: "
+                          f"not designed) | | | | | | | | | |", flush=True)
+                    results.append({**fitted[1], "family": None, "untied": True, "correct": False})
+                    continue
+                r = run_case(case, limits, options, max_iter=args.max_iter, loop=loop, fitted=fitted)
                 results.append(r)
                 if r["family"] is None:
                     print(f"| {pair} | {r['truth']} | {seed} | {tie(r):.1%} | none within "
-                          f"the limits | | | | | | | (failed) | |", flush=True)
+                          f"the limits | | | | | | | | (failed) | |", flush=True)
                     continue
                 chirp = f"{r['D_chirp']:.3g}" + ("" if r["chirp_feasible"] else " (over limits)")
-                rehearsed = "" if r["rehearsed"] is None else f"{r['rehearsed']:.3g}"
+                rehearsed = "" if r["rehearsed"] is None else f"{r['rehearsed']:.3g} | {r['rehearsed_truth_side']:.3g}"
                 print(f"| {pair} | {r['truth']} | {seed} | {tie(r):.1%} | {r['family']} | "
                       f"{r['D']:.3g} | {chirp} | "
                       f"{r['truth_usage']:.2f}{'' if not r['truth_violations'] else ' (NO)'} | "
@@ -78,18 +101,22 @@ def main() -> None:
                       f"{r['winner']}{'' if r['correct'] else ' (wrong)'} | {r['p']:.2g} |", flush=True)
     print(f"\n{time.perf_counter() - start:.0f} s in all")
     for pair in [*args.pairs.split(","), None]:
-        every = [r for r in results if pair is None or r["pair"] == pair]
+        drawn = [r for r in results if pair is None or r["pair"] == pair]
+        every = [r for r in drawn if not r.get("untied")]   # the draws designed or tried
         rs = [r for r in every if tie(r) <= TIE]
         designed = [r for r in every if r["family"] is not None]
         feasible = [r for r in designed if r["chirp_feasible"]]
-        print(f"{pair or 'all pairs'}: of {len(rs)} tied draws ({len(every) - len(rs)} did not tie) named correctly "
-              f"{sum(r['correct'] for r in rs)}/{len(rs)}, decisive "
+        sides = {e: f"{sum(r['correct'] for r in rs if r['truth'] == e)}/{sum(r['truth'] == e for r in rs)}"
+                 for e in dict.fromkeys(r["truth"] for r in rs)}
+        print(f"{pair or 'all pairs'}: of {len(rs)} tied draws ({len(drawn) - len(rs)} did not tie) named correctly "
+              f"{sum(r['correct'] for r in rs)}/{len(rs)} (per truth {sides}), decisive "
               f"{sum(r['correct'] and r['decisive'] for r in rs)}/{len(rs)}; design beats the chirp "
               f"{sum(r['D'] > r['D_chirp'] for r in feasible)}/{len(feasible)} where the chirp fits the limits "
               f"({len(designed) - len(feasible)} where it cannot); no design within the limits "
               f"{len(every) - len(designed)}/{len(every)}; limits exceeded "
               f"{sum(r['usage'] > 1 or bool(r['truth_violations']) for r in designed)}/{len(designed)}; "
-              f"all draws named correctly {sum(r['correct'] for r in every)}/{len(every)}")
+              f"all draws designed named correctly {sum(r['correct'] for r in every)}/{len(every)}")
+    calibration(results)
     if args.json:
         with open(args.json, "w", encoding="utf-8") as f:
             json.dump(results, f, indent=1)

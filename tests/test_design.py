@@ -15,7 +15,7 @@ import json
 import numpy as np
 import pytest
 
-from mjjoint.benchmark.design_cases import PAIRS, make_design_case, run_case
+from mjjoint.benchmark.design_cases import PAIRS, fit_rivals, make_design_case, run_case, tie
 from mjjoint.cli import main
 from mjjoint.design import Limits, Rival, SearchOptions
 from mjjoint.design.criterion import discrimination
@@ -110,18 +110,20 @@ def test_design_cli_refuses_bad_input_in_one_line(tmp_path, capsys):
 
 
 def test_short_case_designs_within_limits_beats_the_chirp_and_names_the_truth():
-    """offset vs asymmetry, truth with an input offset: one draw, a small search."""
+    """offset vs asymmetry, truth with an input offset: one draw, a small search, a reference for
+    the default PD (as the acceptance benchmark)."""
+    from mjjoint.rehearse import Controller
     case = make_design_case("offset_asymmetry", 0, 1, duration=5.0)
     limits = Limits(max_torque=0.2, max_speed=80.0, angle_range=1.0, duration=6.0)
-    # four Sobol starts a family: with two, none of the sticking bearing's runs kept both rivals
-    # within the limits
-    result = run_case(case, limits, SearchOptions(starts=4, refine=0, draws=2, rehearse=1, rehearse_iter=3,
-                                                  families=("dwell_reverse", "multisine")), max_iter=6)
-    assert result["usage"] <= 1.0 and not result["truth_violations"]
+    result = run_case(case, limits, SearchOptions(starts=2, refine=0, draws=2, rehearse=1, rehearse_iter=3,
+                                                  families=("dwell_reverse", "multisine")), max_iter=6,
+                      loop=Controller())
+    assert result.get("error") is None and result["usage"] <= 1.0 and not result["truth_violations"]
     assert result["rehearsed"] > 0 and result["llr"] > 0  # the rehearsal and the decision both name the truth
-    # The chirp at the largest amplitude within the limits; none may exist (the offset alone can
-    # drive the link out of range): then it is no comparison, and says so.
-    assert result["D"] > result["D_chirp"] if result["chirp_feasible"] else result["chirp_usage"] > 1
+    # The chirp at the largest amplitude within the limits (itself a candidate: the design is at
+    # least as good); none may exist (the offset alone can drive the link out of range): then it
+    # is no comparison, and says so.
+    assert result["D"] >= result["D_chirp"] if result["chirp_feasible"] else result["chirp_usage"] > 1
     assert result["winner"] == "input_offset"
 
 
@@ -211,16 +213,32 @@ def test_rivals_from_a_diagnosis_are_its_named_effect_and_first_indistinguishabl
 @pytest.mark.slow
 def test_benchmark_names_the_true_effect_in_nine_tenths_of_tied_draws_within_limits():
     """The acceptance benchmark (``scripts/bench_design.py --seeds 2 --starts 2 --refine 3
-    --draws 2 --max-iter 6 --duration 6 --loop``): of the draws whose original recording tied,
-    >= 90 % named; no rival's or truth's run of a designed reference past a limit."""
+    --draws 2 --max-iter 6 --duration 6 --loop --tied-only``): of the draws whose original
+    recording tied, >= 90 % named; no rival's or truth's run of a designed reference past a limit."""
     from mjjoint.rehearse import Controller
     limits = Limits(max_torque=0.2, max_speed=80.0, angle_range=1.0, duration=6.0)
     options = SearchOptions(starts=2, refine=3, draws=2)
-    results = [run_case(make_design_case(pair, side, seed, 6.0), limits, options, max_iter=6, loop=Controller())
-               for pair in PAIRS for seed in (0, 1) for side in (0, 1)]
+    results = []
+    for pair in PAIRS:
+        for seed in (0, 1):
+            for side in (0, 1):
+                case = make_design_case(pair, side, seed, 6.0)
+                fitted = fit_rivals(case, 6)
+                if tie(fitted[1]) <= 0.05:  # only a draw whose original tied is in question
+                    results.append(run_case(case, limits, options, max_iter=6, loop=Controller(), fitted=fitted))
+    assert len(results) >= 8
     assert all(not r.get("truth_violations") and r.get("usage", 0) <= 1 for r in results)
-    tied = [r for r in results if max(r["original_heldout"].values()) <= 1.05 * min(r["original_heldout"].values())]
-    assert sum(r["correct"] for r in tied) >= 0.9 * len(tied)
+    assert sum(r["correct"] for r in results) >= 0.9 * len(results)
+
+
+def test_the_backlash_truths_original_recording_ties_the_rivals():
+    """The benchmark's premise on its hardest pair: a play of a few encoder counts under a small
+    slow sine is fitted as well by a soft hysteretic gear (held-out costs within 5 %)."""
+    case = make_design_case("backlash_hysteresis", 0, 2, 6.0)
+    assert case.truth.values["backlash.width"] < 3e-5
+    rivals, found = fit_rivals(case, 6)
+    assert tie(found) <= 0.05
+    assert [r.effect for r in rivals] == ["backlash", "transmission_hysteresis"]
 
 
 def test_the_designed_input_beats_a_same_length_default_chirp_on_the_criterion(pair_evaluator):

@@ -48,11 +48,12 @@ class SearchOptions:
     rehearse: int = 2               # best inputs by D whose decision is rehearsed (0: choose by D)
     rehearse_iter: int = 8          # LM iterations of each rehearsed refit
     margin: float = 0.9             # share of the speed and angle limits the rivals' runs may use
+    limit_draws: int = 2            # draws of every parameter per rival whose runs the limits are checked on
 
     def __post_init__(self) -> None:
         if not 0 < self.margin <= 1:
             raise ValueError(f"margin={self.margin!r} must lie in (0, 1]")
-        for name in ("starts", "refine", "draws", "seed", "rehearse", "rehearse_iter"):
+        for name in ("starts", "refine", "draws", "seed", "rehearse", "rehearse_iter", "limit_draws"):
             value = getattr(self, name)
             least = 1 if name in ("starts", "rehearse_iter") else 0
             if not isinstance(value, int) or value < least:
@@ -123,7 +124,8 @@ class Evaluator:
         gear = rivals[0].structure.gear_ratio
         self.peak = limits.max_torque if loop is None else min(
             limits.angle_range, limits.max_speed * limits.duration / (4 * np.pi * gear))
-        self.models = tuple(RivalModel(r, limits.rate, options.draws, options.seed, self.loop) for r in rivals)
+        self.models = tuple(RivalModel(r, limits.rate, options.draws, options.seed, self.loop, options.limit_draws)
+                            for r in rivals)
         self.noise, self.limits, self.window, self.margin = noise, limits, window, options.margin
         self.evaluated: list[tuple[str, tuple[float, ...], float, float]] = []
 
@@ -216,7 +218,11 @@ def design(rivals: tuple[Rival, Rival], noise: dict[str, float] | None, limits: 
     if best is None or not best.feasible:
         raise ValueError("no input of the families tried keeps both rivals within the limits "
                          "(raise --max-speed / --angle-range or lower --max-torque)")
-    rehearsed = _rehearsed(pool, rivals, window, options)
+    # Only inputs at least as good as the default chirp on D are rehearsed, so that the choice
+    # among them never trades the design's advantage over the chirp away.
+    # The chirp itself is a candidate: where nothing searched does better, it is the design.
+    eligible = [c for c in [*pool, ref] if c.score >= ref.score] if ref.feasible else pool
+    rehearsed = _rehearsed(eligible or pool, rivals, window, options)
     if rehearsed:
         best = max(rehearsed, key=lambda c: c.rehearsal.score)
     problems = [v for r, tr in zip(rivals, best.traces) for v in violations(tr, limits, r.effect)]

@@ -42,17 +42,25 @@ class RivalModel:
     run open loop (a torque programme) or, with ``loop`` (a controller), tracking a link-angle
     reference (``design.loop``)."""
 
-    def __init__(self, rival: Rival, rate: float, ndraws: int = 4, seed: int = 0, loop: Controller | None = None):
+    def __init__(self, rival: Rival, rate: float, ndraws: int = 4, seed: int = 0, loop: Controller | None = None,
+                 limit_draws: int = 0):
         self.rival, self.loop, self.rate = rival, loop, rate
         self.fitted = Simulator(rival.structure.compile(), sample_rate=rate)
-        self.draws, self._draw_sims = [], []
-        for s in rival.draws(ndraws, seed):
+        self.draws, self._draw_sims = self._compiled(rival.draws(ndraws, seed), rate)
+        # Every parameter drawn (``Rival.joint_draws``): runs for the limits only.
+        self._limit_sims = self._compiled(rival.joint_draws(limit_draws, seed + 1), rate)[1]
+
+    @staticmethod
+    def _compiled(structures, rate: float) -> tuple[list, list[Simulator]]:
+        kept, sims = [], []
+        for s in structures:
             try:
                 model = s.compile()
-            except ValueError:  # unstable at the timestep: no prediction to spread
+            except ValueError:  # unstable at the timestep: no prediction to spread, no run
                 continue
-            self.draws.append(s)
-            self._draw_sims.append(Simulator(model, sample_rate=rate))
+            kept.append(s)
+            sims.append(Simulator(model, sample_rate=rate))
+        return kept, sims
 
     def _run(self, sim: Simulator, x: np.ndarray) -> Trace:
         if self.loop is None:
@@ -67,10 +75,11 @@ class RivalModel:
             raise Diverged(f"{self.rival.effect}: {exc}") from None
 
     def draw_runs(self, x: np.ndarray) -> list[Trace]:
-        """The parameter draws' runs under ``x`` (for the limits: the joint may be any of them);
-        a draw whose run diverges is left out, as one that cannot be compiled is."""
+        """The parameter draws' runs under ``x``, the effect's and every parameter's (for the
+        limits: the joint may be any of them); a draw whose run diverges is left out, as one that
+        cannot be compiled is."""
         runs = []
-        for sim in self._draw_sims:
+        for sim in (*self._draw_sims, *self._limit_sims):
             try:
                 runs.append(self._run(sim, x))
             except ValueError:

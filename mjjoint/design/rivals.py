@@ -39,10 +39,11 @@ class Rival:
         own = {p.name for p in EFFECTS[self.effect].params}
         return tuple(p.name for p in self.structure.params if p.name in own)
 
-    def standard_errors(self) -> np.ndarray:
-        """Standard error of each drawn parameter in the optimiser's coordinates (from its 95 %
-        interval; no interval or an unbounded one: a quarter of the parameter's range)."""
-        names = self.drawn
+    def standard_errors(self, names=None) -> np.ndarray:
+        """Standard error of each of ``names`` (default the drawn parameters) in the optimiser's
+        coordinates, from its 95 % interval; no interval or an unbounded one: a quarter of the
+        parameter's range."""
+        names = self.drawn if names is None else tuple(names)
         lo, hi = self.structure.bounds(names)
         params = {p.name: p for p in self.structure.params}
         se = []
@@ -60,18 +61,33 @@ class Rival:
                 se.append(span)
         return np.asarray(se)
 
-    def draws(self, n: int, seed: int = 0) -> list[Structure]:
+    def draws(self, n: int, seed: int = 0, names=None) -> list[Structure]:
         """``n`` structures (n even: antithetic pairs x +- d, so the draws' mean is the fit)
-        with the drawn parameters normal about the fit, clipped to their bounds."""
-        names = self.drawn
+        with the parameters ``names`` (default the drawn ones) normal about the fit, clipped to
+        their bounds."""
+        names = self.drawn if names is None else tuple(names)
         if n == 0 or not names:
             return []
         x = self.structure.vector(names)
-        se = self.standard_errors()
+        se = self.standard_errors(names)
         lo, hi = self.structure.bounds(names)
         d = np.random.default_rng(seed).standard_normal(((n + 1) // 2, len(names))) * se
         steps = np.concatenate([d, -d])[:n]
         return [self.structure.from_vector(np.clip(x + s, lo, hi), names) for s in steps]
+
+    def joint_draws(self, n: int, seed: int = 0) -> list[Structure]:
+        """``n`` draws of every parameter, each independently within its interval: for checking
+        the limits only. A tying recording can leave shared parameters loose (a motor inertia
+        known to a factor of 2), and the truth's run of an input then differs from both rivals'
+        (docs/design-experiments.md); independent draws spread wider than the joint
+        uncertainty, the safe side for a limit. Only parameters with a finite interval are
+        drawn: an unbounded one is a log parameter fitted to its lower bound (no viscous
+        friction, say), whose range the recording did not open, only failed to close."""
+        finite = [p.name for p in self.structure.params if p.name in self.intervals
+                  and np.all(np.isfinite(self.intervals[p.name]))
+                  and (not p.log or self.intervals[p.name][0] > 0)
+                  and abs(p.to_unit(self.intervals[p.name][1]) - p.to_unit(self.intervals[p.name][0])) < np.inf]
+        return self.draws(n, seed, finite)
 
     def describe(self) -> dict:
         return {"effect": self.effect, **self.structure.describe(),
