@@ -111,3 +111,23 @@ def test_a_batch_holds_one_models_predictions_at_a_time(case, monkeypatch):
     r = residual_matrix(watched, case.truth, names, pred.train, pred)(grid)
     assert r.shape[1] == 6 and len(made) == 6
     assert alive == [0] * 6
+
+
+def _resident_mb() -> float:
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmRSS")) / 1024
+
+
+@pytest.mark.skipif(windows_mod._MALLOC_TRIM is None, reason="glibc's allocator only")
+def test_freed_arrays_of_a_few_mb_leave_the_resident_memory():
+    """Once glibc's mapping threshold has risen past a few MB, freed arrays of that size stay
+    resident until ``release_freed`` hands their pages back."""
+    raised = np.ones(2 ** 20)  # 8 MB, mapped; freeing it raises the threshold past 4 MB
+    del raised
+    arrays = [np.ones(2 ** 19) for _ in range(40)]  # 40 x 4 MB from the heap
+    last = arrays[-1]  # kept: the heap's top stays in use, so only pages inside it can go back
+    del arrays
+    before = _resident_mb()
+    windows_mod.release_freed()
+    assert before - _resident_mb() > 100
+    assert last.sum() == 2 ** 19

@@ -50,7 +50,8 @@ VELOCITY_ORDER = 3
 # Rollout output buffer per predict() call [bytes]. MuJoCo writes the full state of every
 # step (2 steps x (37 + 5) doubles = 672 B per sample and model for the shipped arm); holding
 # a whole batch grows with recording x models (3 GB for a 10-minute recording's 10-model
-# Jacobian), so the batch is rolled out in chunks of this size. 64 MiB holds ~400 windows of
+# Jacobian), so the batch is rolled out in chunks of this size (and a free run of the whole
+# recording in stretches of it, ``Predictor._stretches``). 64 MiB holds ~400 windows of
 # 0.25 s, so a 4-model Jacobian of recordings up to ~30 s stays one call; chunking costs no
 # speed (716 window rollouts of a 60 s lab recording, 2 cores: 0.69 s in two chunks, 0.76 s
 # in one). Peak memory: scripts/bench_fit.py --memory.
