@@ -422,11 +422,23 @@ def memory_child(duration: float) -> dict:
     phases["predictor"] = peak_rss_mb()
     base = Structure.create(case.base_effects, case.truth.nominal, GEAR_RATIO)
     t = time.perf_counter()
-    diag = diagnose(predictor, base, MEMORY_OPTIONS, lambda m: print(f"      {m}", file=sys.stderr, flush=True))
+    # The step the peak was reached in: the last progress line before the peak last rose.
+    peak = {"mb": peak_rss_mb(), "during": "the start"}
+    last = ["the start"]
+
+    def progress(msg: str) -> None:
+        now = peak_rss_mb()
+        if now > peak["mb"]:
+            peak.update(mb=now, during=last[0])
+        last[0] = msg.strip()
+        print(f"      {msg} (peak RSS {now:.0f} MB)", file=sys.stderr, flush=True)
+    diag = diagnose(predictor, base, MEMORY_OPTIONS, progress)
     phases["diagnosed"] = peak_rss_mb()
+    if phases["diagnosed"] > peak["mb"]:
+        peak["during"] = last[0]
     return {"seconds_recorded": duration, "samples": len(rec.t), "windows": len(predictor.starts),
-            "parameters": len(base.params), "peak_rss_mb": phases, "rollouts": diag.rollouts,
-            "wall_s": time.perf_counter() - t}
+            "parameters": len(base.params), "peak_rss_mb": phases, "peak_during": peak["during"],
+            "rollouts": diag.rollouts, "wall_s": time.perf_counter() - t}
 
 
 def memory(sizes: Sizes) -> dict:
@@ -439,7 +451,8 @@ def memory(sizes: Sizes) -> dict:
         out[f"{duration:g}s"] = row
         p = row["peak_rss_mb"]
         say(f"    peak RSS {p['diagnosed']:.0f} MB (after recording {p['recorded']:.0f} MB, with predictor "
-            f"{p['predictor']:.0f} MB); {row['rollouts']:.0f} rollouts, {row['wall_s']:.0f} s")
+            f"{p['predictor']:.0f} MB; reached after: {row['peak_during']}); {row['rollouts']:.0f} rollouts, "
+            f"{row['wall_s']:.0f} s")
     short, long_ = (out[f"{d:g}s"] for d in sizes.memory)
     growth = (long_["peak_rss_mb"]["diagnosed"] - short["peak_rss_mb"]["diagnosed"]) * 2 ** 20
     per_sample = growth / (long_["samples"] - short["samples"])

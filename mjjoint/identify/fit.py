@@ -120,20 +120,24 @@ class FitResult:
 
 def residual_matrix(pred_fn, structure: Structure, names, windows, predictor: Predictor, seen: dict | None = None,
                     scale: float | None = None):
-    """Residual columns for parameter vectors (columns of x); ``seen`` keeps the predictions
-    of the last single-vector call ({"x": x, "pred": ...}). With a loss ``scale`` the residuals
-    are those of the Cauchy loss over windows (``robust_residuals``)."""
+    """Residual columns for parameter vectors (columns of x); ``pred_fn(structures, windows)``
+    gives their predictions, one at a time (``Predictor.predictions``): each is reduced to its
+    residual column before the next is made. ``seen`` keeps the predictions of the last
+    single-vector call ({"x": x, "pred": ...}). With a loss ``scale`` the residuals are those of
+    the Cauchy loss over windows (``robust_residuals``)."""
     def residual(x: np.ndarray) -> np.ndarray:
         x = np.atleast_2d(x.T).T if x.ndim == 1 else x
         structs = [structure.from_vector(x[:, i], names) for i in range(x.shape[1])]
-        preds = pred_fn(structs, windows)
-        if seen is not None and len(preds) == 1:
-            seen.update(x=x[:, 0].copy(), pred=preds[0])
-        cols = []
-        for p in preds:
-            r = predictor.residuals(p, windows)
-            cols.append(np.where(np.isfinite(r), r, _BAD))
-        r = np.stack(cols, axis=1)
+        r, i = None, 0
+        for p in pred_fn(structs, windows):  # not enumerate: its cached tuple would hold the last p
+            if seen is not None and len(structs) == 1:
+                seen.update(x=x[:, 0].copy(), pred=p)
+            col = predictor.residuals(p, windows)
+            if r is None:
+                r = np.empty((len(col), len(structs)))
+            r[:, i] = np.where(np.isfinite(col), col, _BAD)
+            i += 1
+            del p, col  # not held while the next structure is predicted
         return r if scale is None else robust_residuals(r, predictor, len(windows), scale)
     return residual
 
@@ -195,10 +199,11 @@ class Objective:
                  scale: float | None = None):
         self.seen: dict = {}
         self.accepted: dict = {}  # the last Jacobian point's predictions (``seen`` when it was taken)
-        self._residual = residual_matrix(predictor.predict, structure, names, windows, predictor, self.seen, scale)
+        self._residual = residual_matrix(lambda structs, w: predictor.predictions(structs, w), structure, names,
+                                         windows, predictor, self.seen, scale)
         # The Jacobian's columns, 1e-8 from a point whose model was found stable, are not checked
         # again (``Predictor.predict(assume_stable=True)``).
-        self._fd_residual = residual_matrix(lambda structs, w: predictor.predict(structs, w, assume_stable=True),
+        self._fd_residual = residual_matrix(lambda structs, w: predictor.predictions(structs, w, assume_stable=True),
                                             structure, names, windows, predictor, None, scale)
         self._stable_at = (lambda x: False) if structure is None else (
             lambda x: predictor.stable(structure.from_vector(x, names)))

@@ -20,7 +20,8 @@ any periodic pattern can alias with a periodic excitation (a step every 0.5 s an
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+import ctypes
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -49,7 +50,8 @@ VELOCITY_ORDER = 3
 # Rollout output buffer per predict() call [bytes]. MuJoCo writes the full state of every
 # step (2 steps x (37 + 5) doubles = 672 B per sample and model for the shipped arm); holding
 # a whole batch grows with recording x models (3 GB for a 10-minute recording's 10-model
-# Jacobian), so the batch is rolled out in chunks of this size. 64 MiB holds ~400 windows of
+# Jacobian), so the batch is rolled out in chunks of this size (and a free run of the whole
+# recording in stretches of it, ``Predictor._stretches``). 64 MiB holds ~400 windows of
 # 0.25 s, so a 4-model Jacobian of recordings up to ~30 s stays one call; chunking costs no
 # speed (716 window rollouts of a 60 s lab recording, 2 cores: 0.69 s in two chunks, 0.76 s
 # in one). Peak memory: scripts/bench_fit.py --memory.
@@ -360,14 +362,24 @@ class Predictor:
         ``assume_stable``: the caller vouches that the structures are stable (a finite-difference
         Jacobian's models, each 1e-8 from a point that was checked), so their compiled models are
         not checked (``_stable``: a few ms each, as much as a short window batch's rollout)."""
+        return list(self.predictions(structures, windows, assume_stable))
+
+    def predictions(self, structures: list[Structure], windows: np.ndarray | None = None,
+                    assume_stable: bool = False) -> Iterator[dict[str, np.ndarray]]:
+        """``predict``'s predictions one structure at a time, each as soon as its windows are
+        rolled out: a caller that reduces each one (to residuals) holds one structure's
+        predictions, not a whole batch's (they grow with recording x models). To be used up
+        before the predictor is used again."""
         windows = np.arange(len(self.starts)) if windows is None else np.asarray(windows)
         stable = [True] * len(structures) if assume_stable else [self.stable(s) for s in structures]
         if not all(stable):
             # Explicitly unstable parameters are not simulated: they score as NaN (worst).
             good = [s for s, ok in zip(structures, stable) if ok]
-            done = iter(self.predict(good, windows) if good else [])
+            done = self.predictions(good, windows) if good else iter(())
             nan = np.full((len(windows), self.nwin_samples), np.nan)
-            return [next(done) if ok else {k: nan for k in ("q", "theta", "delta", "tau")} for ok in stable]
+            for ok in stable:
+                yield next(done) if ok else {k: nan for k in ("q", "theta", "delta", "tau")}
+            return
         models, delays, skews = [], [], []
         for s in structures:
             delays.append(s.model_params()[0].input_delay)
@@ -375,7 +387,9 @@ class Predictor:
             models.append(self._model(s))
         sig = {_signature(m) for m in models}
         if len(sig) > 1:
-            return [self.predict([s], windows)[0] for s in structures]
+            for s in structures:
+                yield from self.predictions([s], windows)
+            return
         for mod in models:
             register_model(mod)  # a memoised model's registry row may have been recycled
         jis = [self._joint(mod) for mod in models]  # parsed once per model and call
@@ -384,20 +398,23 @@ class Predictor:
         x0 = [self._start_states(mod, ji, d, windows, k, lead_ins) for mod, d, ji, k in zip(models, delays, jis, skews)]
         self._flexible_start(lead_ins)
         x0 = np.concatenate(x0)
-        ctrl = np.concatenate([self._controls(mod, i0, self.nwin_samples, d, ji)
-                               for mod, d, ji in zip(models, delays, jis)])
+        n, nw = self.nwin_samples, len(windows)
+
+        def controls(a: int, b: int) -> np.ndarray:  # rows a..b: model k's windows are rows k nw..(k + 1) nw
+            return np.concatenate([self._controls(models[k], i0[max(a - k * nw, 0):b - k * nw], n, delays[k], jis[k])
+                                   for k in range(a // nw, (b - 1) // nw + 1)])
         batch_models = [mod for mod in models for _ in windows]
         sub = self._substeps(models[0])
-        nw = len(windows)
-        parts = [[] for _ in models]
-        for a, b, state in self._rollouts(batch_models, x0, ctrl):
+        self.rollouts += len(structures) * nw / len(self.starts)
+        parts: list = []  # the model's windows rolled out so far, by chunk
+        for a, b, state in self._rollouts(batch_models, x0, controls, (n - 1) * sub):
             for k in range(a // nw, (b - 1) // nw + 1):  # the models whose windows this chunk holds
                 lo, hi = max(a, k * nw), min(b, (k + 1) * nw)
-                picked = state[lo - a:hi - a, sub - 1::sub][:, : self.nwin_samples - 1]
-                parts[k].append(self._signals(models[k], np.concatenate([x0[lo:hi, None], picked], axis=1), jis[k]))
-        self.rollouts += len(structures) * len(windows) / len(self.starts)
-        preds = [p[0] if len(p) == 1 else {s: np.concatenate([q[s] for q in p]) for s in p[0]} for p in parts]
-        return [s.measured(p, self.m.rate) for s, p in zip(structures, preds)]
+                picked = state[lo - a:hi - a, sub - 1::sub][:, : n - 1]
+                parts.append(self._signals(models[k], np.concatenate([x0[lo:hi, None], picked], axis=1), jis[k]))
+                if hi == (k + 1) * nw:  # model k's last window
+                    yield structures[k].measured(_joined(parts), self.m.rate)
+                    parts = []  # gone before the next model's windows are rolled out
 
     def free_run(self, structure: Structure) -> dict[str, np.ndarray]:
         """The structure simulated under the measured input without restarts: from the first
@@ -405,6 +422,8 @@ class Predictor:
 
         Returns q, theta, delta, tau over the whole recording (samples no run reaches, before
         a recording's first window, keep the measured values; NaN where the run diverged).
+        The run is rolled out in consecutive stretches (``_rollouts``), so its memory does not
+        grow with the recording's length.
         """
         arm = structure.model_params()[0]
         model = self._model(structure)
@@ -423,25 +442,49 @@ class Predictor:
             n = end - i0
             x0 = self._start_states(model, ji, arm.input_delay, np.array([w]), structure.skew)
             ctrl = self._controls(model, np.array([i0]), n, arm.input_delay, ji)
-            for _, _, state in self._rollouts([model], x0, ctrl):
-                run = np.concatenate([x0[:, None], state[:, sub - 1::sub][:, :n - 1]], axis=1)
-                for k, v in self._signals(model, run, ji).items():
-                    out[k][i0:i0 + n] = v[0]
+            for k, v in self._signals(model, x0[:, None], ji).items():
+                out[k][i0] = v[0, 0]
+            for step, state in self._stretches(model, x0, ctrl, sub):
+                at = i0 + 1 + step // sub  # the sample the stretch's first kept step ends on
+                for k, v in self._signals(model, state[:, sub - 1::sub], ji).items():
+                    out[k][at:at + v.shape[1]] = v[0]
         return out
 
-    def _rollouts(self, models: list, x0: np.ndarray, ctrl: np.ndarray):
+    def _rollouts(self, models: list, x0: np.ndarray, ctrl, nstep: int | None = None):
         """Roll out rows (models, x0, ctrl) in chunks that fit ROLLOUT_BUFFER; yields (a, b,
-        states of rows a..b), a view valid until the next chunk."""
+        states of rows a..b), a view valid until the next chunk. ``ctrl``: the controls of all
+        rows, or a function (a, b) -> those of rows a..b over ``nstep`` steps, built per chunk
+        (a whole batch's controls grow with recording x models)."""
+        rows = ctrl if callable(ctrl) else (lambda a, b: ctrl[a:b])
         datas = self._datas(models[0])
-        nrow, nstep, nx, nsens = len(models), ctrl.shape[1], x0.shape[1], models[0].nsensordata
-        chunk = max(len(datas), min(nrow, ROLLOUT_BUFFER // (8 * nstep * (nx + nsens))))
+        nrow, nx, nsens = len(models), x0.shape[1], models[0].nsensordata
+        nstep = ctrl.shape[1] if nstep is None else nstep
+        chunk = min(nrow, max(len(datas), ROLLOUT_BUFFER // (8 * nstep * (nx + nsens))))
         state, sens = np.empty((chunk, nstep, nx)), np.empty((chunk, nstep, nsens))
         for a in range(0, nrow, chunk):
             b = min(a + chunk, nrow)
             with mujoco_log_silenced():
-                mj_rollout.rollout(models[a:b], datas, x0[a:b], ctrl[a:b], control_spec=self.control_spec,
+                mj_rollout.rollout(models[a:b], datas, x0[a:b], rows(a, b), control_spec=self.control_spec,
                                    state=state[:b - a], sensordata=sens[:b - a], persistent_pool=True)
             yield a, b, state[:b - a]
+            release_freed()  # the chunk's arrays, consumed
+
+    def _stretches(self, model, x0: np.ndarray, ctrl: np.ndarray, sub: int):
+        """One row (x0 (1, nx), ctrl (1, steps, nu)) rolled out in consecutive stretches of whole
+        samples that fit ROLLOUT_BUFFER, each from the full physics state the one before ended
+        in; yields (first step, states (1, stretch, nx)), a view valid until the next stretch.
+        The same run as one rollout: the state carries everything a step reads but the
+        constraint solver's warm start, which restarts at zero (the same solution, to the
+        solver's tolerance, where a constraint is active at a stretch's start; none in the
+        plants built here)."""
+        nstep = ctrl.shape[1]
+        per = ROLLOUT_BUFFER // (8 * (x0.shape[1] + model.nsensordata))
+        per = max(sub, per - per % sub)
+        x = x0
+        for a in range(0, nstep, per):
+            for _, _, state in self._rollouts([model], x, ctrl[:, a:a + per]):
+                yield a, state
+                x = state[:, -1].copy()
 
     def _datas(self, model) -> list:
         """Scratch MjData for the rollout threads, one set per model signature, kept across
@@ -707,6 +750,33 @@ class Predictor:
     @property
     def test(self) -> np.ndarray:
         return np.flatnonzero(self.holdout)
+
+
+def _glibc_trim():
+    try:
+        return ctypes.CDLL("libc.so.6").malloc_trim
+    except (OSError, AttributeError):  # not glibc: its allocator keeps no such pages, or they stay
+        return None
+
+
+_MALLOC_TRIM = _glibc_trim()
+
+
+def release_freed() -> None:
+    """Hands the heap pages of freed arrays back to the system (glibc's ``malloc_trim``).
+
+    Once glibc has freed a mapped block of a few MB it raises its mapping threshold to that size
+    (up to 32 MB), and later arrays of that size come from the heap; freed, their pages stay
+    resident. A batch of windows makes many such arrays per rollout chunk, so without this the
+    resident memory of a long recording's fit grows by what its chunks ever held, not by what
+    they hold at once (a 120 s recording's base fit kept ~75 MB more). A no-op elsewhere."""
+    if _MALLOC_TRIM is not None:
+        _MALLOC_TRIM(0)
+
+
+def _joined(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """One model's predictions from those of its chunks of windows, in order."""
+    return parts[0] if len(parts) == 1 else {s: np.concatenate([p[s] for p in parts]) for s in parts[0]}
 
 
 @dataclass
