@@ -245,8 +245,9 @@ class Simulator:
             st, (q, qd, theta, thd) = ji.settled(self.model, states)
             tau, fric, load = joint_traces(ji.block, st, q, qd, theta, thd, *ji.steps(self.model))
             out.append(Trace(t=states[:, 0].copy(), u=u2[:, j].copy(), q=q.copy(), theta=theta.copy(),
-                             qd=sample_velocity(qd, st[:, WP]), thetad=sample_velocity(thd, st[:, WPL]), tau=tau, friction=fric, load_friction=load,
-                             states=st, gear_ratio=ji.gear_ratio, qpos=qpos.copy()))
+                             qd=sample_velocity(qd, st[:, WP]), thetad=sample_velocity(thd, st[:, WPL]),
+                             tau=tau, friction=fric, load_friction=load, states=st, gear_ratio=ji.gear_ratio,
+                             qpos=qpos.copy()))
         return out
 
 
