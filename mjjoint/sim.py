@@ -45,8 +45,10 @@ def step_held(model: mujoco.MjModel, data: mujoco.MjData, actuators, c, before, 
     """Step one sample period with controls ``c`` on ``actuators`` held over it (``held_controls``;
     ``before``: the controls of the sample before): the closed loops' per-sample step. Returns
     the velocities the last step started from (``sample_velocity``'s ``w_before``)."""
-    for row in held_controls(np.asarray(c, float)[None], substeps, before):
-        w_before = data.qvel.copy()
+    rows = held_controls(np.asarray(c, float)[None], substeps, before)
+    for k, row in enumerate(rows):
+        if k == len(rows) - 1:
+            w_before = data.qvel.copy()
         data.ctrl[actuators] = row
         mujoco.mj_step(model, data)
     return w_before

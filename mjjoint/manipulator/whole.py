@@ -220,7 +220,9 @@ class ArmPredictor(Predictor):
         samples = np.arange(len(self.m.t))
         w, h = 2 * math.pi * FOLLOW_HZ, model.opt.timestep
         for _, _, (p, v, a), act in self._others(model):
-            ctrl[:, :, act] = np.interp(at, samples, a + w * w * p + 2 * w * state_velocity(v, a, -h))
+            # The follower's damping is implicit in the integrator: it acts on the velocity the
+            # step ends with, the measured one half a step on.
+            ctrl[:, :, act] = np.interp(at, samples, a + w * w * p + 2 * w * (v + 0.5 * h * a))
         return ctrl
 
 
