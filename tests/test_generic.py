@@ -41,6 +41,13 @@ def test_generic_kernels_are_their_forms():
                                         - smooth_sign(wq, motor.v_eps) * level)
 
 
+def test_the_block_says_whether_any_additive_term_is_present():
+    # the kernels skip the additive terms at once where none is present
+    link = LinkForm(1.0, 0.0, 0.0, 0.0, cycles=1.0)
+    assert layout.pack(JointParams(), 0, 0, 1, 1)[layout.ANY_SITE] == 0.0
+    assert layout.pack(JointParams().with_term("link_form", link), 0, 0, 1, 1)[layout.ANY_SITE] == 1.0
+
+
 def test_generic_forms_follow_the_grammar_and_name_their_causes():
     for name in GENERIC:
         site, *form = name.split("_")

@@ -20,7 +20,7 @@ from ..physics.transmission import engaged, transmission_stiffness, transmission
 from ..joint import STABILITY_BUDGET
 from ..physics.twosep import twosep_step
 from ..physics.load import bearing_friction, bearing_step
-from .layout import (AT, FO, FOL, FOL2, FOT, FP, FPL, FRICTION, FRICTION_2SEP, FRICTION_STATIC, HYSTERESIS, LOAD,
+from .layout import (ANY_SITE, AT, FO, FOL, FOL2, FOT, FP, FPL, FRICTION, FRICTION_2SEP, FRICTION_STATIC, HYSTERESIS, LOAD,
                      OMEGA, QR, SITE_TERMS, ADVANCE_TERMS, TP, TRANSMISSION, WP, WPL, WSIGN, X, Z1, Z2)
 
 F, T, H, L = FRICTION, TRANSMISSION, HYSTERESIS, LOAD
@@ -157,7 +157,7 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     d_eng = 0.0 if in_gap else blk[T.damping]
     # Motor: -T/N - F + ripple.
     kind = blk[F.kind]
-    sm, sl = site_torques(blk, st, q, wq, theta, wtheta)
+    sm, sl = site_torques(blk, st, q, wq, theta, wtheta) if blk[ANY_SITE] != 0.0 else (0.0, 0.0)
     if kind == FRICTION_STATIC and blk[F.v_eps] <= 0.0 and hj > 0.0:
         fm, fric = exact_static_rotor(blk, st, -t / n + sm, -d_eng / (n * n), wq, hj)
     else:
@@ -242,7 +242,8 @@ def joint_advance(blk, st, q, wq, theta, wtheta, h):
         n = blk[T.gear_ratio]
         delta = q / n - theta
         st[X] = hysteresis_step(blk, st[X], delta - (wq / n - wtheta) * h, delta)
-    advance_terms(blk, st, q, wq, theta, wtheta, h)
+    if blk[ANY_SITE] != 0.0:
+        advance_terms(blk, st, q, wq, theta, wtheta, h)
 
 
 @kernel

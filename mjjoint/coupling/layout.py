@@ -17,15 +17,16 @@ import numpy as np
 
 from ..physics.catalogue import BY_SECTION, TERMS
 
-# Parameter block: the joint addresses (qpos and dof of the motor and link joints; -1: world)
-# and the number of joints the instance drives (joint.JOINTS_KEY; the blocks of its joints
-# follow each other in its registry row).
-MQ, MD, LQ, LD, NJ = range(5)
+# Parameter block: the joint addresses (qpos and dof of the motor and link joints; -1: world),
+# the number of joints the instance drives (joint.JOINTS_KEY; the blocks of its joints follow
+# each other in its registry row) and whether any additive term is present (1.0; 0.0 lets the
+# kernels skip them all at once).
+MQ, MD, LQ, LD, NJ, ANY_SITE = range(6)
 MAX_JOINTS = 8  # joints one instance may drive
 # Each term's first slot (its kind, then its fields) and first state, in catalogue order.
-_starts = dict(zip(BY_SECTION, accumulate((1 + len(t.fields) for t in TERMS), initial=NJ + 1)))
+_starts = dict(zip(BY_SECTION, accumulate((1 + len(t.fields) for t in TERMS), initial=ANY_SITE + 1)))
 _state_starts = dict(zip(BY_SECTION, accumulate((len(t.states) for t in TERMS), initial=0)))
-BLOCK_LEN = NJ + 1 + sum(1 + len(t.fields) for t in TERMS)
+BLOCK_LEN = ANY_SITE + 1 + sum(1 + len(t.fields) for t in TERMS)
 
 
 def section(name: str):
@@ -65,6 +66,7 @@ def pack(params, motor_qpos: int, motor_dof: int, link_qpos: int, link_dof: int,
     plugin instance drives."""
     b = np.zeros(BLOCK_LEN)
     b[[MQ, MD, LQ, LD, NJ]] = motor_qpos, motor_dof, link_qpos, link_dof, njoint
+    b[ANY_SITE] = float(any(params.term(t.section) is not None for t in TERMS if t.torque is not None))
     for t in TERMS:
         o = _starts[t.section]
         b[o:o + 1 + len(t.fields)] = t.block_values(params.term(t.section))
