@@ -27,8 +27,7 @@ from .identify.structure import Structure
 from .identify.windows import Measured, Predictor, WindowDesign
 from .manipulator import arm_model, arm_predictor, load_note
 from .modelfile import ModelFile
-from .recordings import MultiRecording, Recording, read_recording
-from .recordings.resample import describe as describe_resampling
+from .recordings import MultiRecording, Recording, read_recording, reading_notes
 
 PLANTS = {"arm": "", "linear": "slide", "rotary": "hinge"}  # plant -> direct drive joint type ("": the arm)
 
@@ -166,15 +165,14 @@ def _each(recording) -> list:
 
 
 def _stacked(recording, recs: list, gear_ratio: float, notes: list[str], output: bool = True) -> Measured:
-    """The recordings on one time line, each its own segment (``Measured.stack``); their
-    resampling reported in ``notes``."""
+    """The recordings on one time line, each its own segment (``Measured.stack``); what
+    reading did to them (rows dropped, resampling) reported in ``notes``."""
     several = len(recs) > 1
     for given, rec in zip(_each(recording), recs):
         if not isinstance(rec, Recording):
             raise ValueError(f"{_source(given)}: holds several joints; only single-joint recordings are stacked "
                              "(give a multi-joint recording alone)")
-        if rec.meta["resampled"] is not None:
-            notes.append(f"{_source(given)}: " * several + describe_resampling(rec.meta["resampled"]))
+        notes += [f"{_source(given)}: " * several + note for note in reading_notes(rec.meta)]
     parts = [Measured.from_recording(rec, gear_ratio, output=output) for rec in recs]
     return parts[0] if not several else Measured.stack(parts)
 

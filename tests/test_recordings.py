@@ -23,6 +23,7 @@ from mjjoint.recordings import (
     parse_column_map,
     parse_scales,
     read_recording,
+    reading_notes,
     write_recording,
 )
 from mjjoint.recordings.resample import nominal_period
@@ -301,6 +302,32 @@ def test_gap_is_refused_where_it_is_unless_allowed(tmp_path: Path) -> None:
     np.testing.assert_allclose(rec.q, 2.0 * rec.t + 1.0, rtol=1e-12)
 
 
+def test_repeated_rows_are_dropped(tmp_path: Path) -> None:
+    t = np.arange(N) * DT
+    path = tmp_path / "repeats.csv"
+    jittered_csv(path, np.insert(t, [5, 20, 20], t[[4, 19, 19]]))  # rows 4 and 19 written again (19 twice)
+    rec = read_recording(path)
+    np.testing.assert_array_equal(rec.t, t)
+    np.testing.assert_allclose(rec.q, 2.0 * t + 1.0, rtol=1e-12)
+    assert rec.meta["repaired"] == {"repeated_rows": 3, "dropouts": 0} and rec.meta["resampled"] is None
+    assert reading_notes(rec.meta) == ["dropped 3 row(s) repeating the one before (same time and values)"]
+
+
+def test_dropouts_are_refused_unless_gaps_are_allowed_then_interpolated(tmp_path: Path) -> None:
+    t = np.arange(N) * DT
+    path = tmp_path / "dropouts.csv"
+    rows = [[repr(float(x)), 0.5 * x, 2.0 * x + 1.0, -x, 3.0] for x in t]
+    rows[10][2] = "nan"
+    path.write_text(csv_text("t,u,q,theta,tau", rows[:30]))
+    with pytest.raises(RecordingError, match=r"'q' has nan at sample 10 \(line 12\).*--allow-gaps"):
+        read_recording(path)
+    rec = read_recording(path, allow_gaps=True)
+    np.testing.assert_array_equal(rec.t, t[:30])
+    np.testing.assert_allclose(rec.q, 2.0 * t[:30] + 1.0, rtol=1e-12)  # sample 10 interpolated across
+    assert rec.meta["repaired"] == {"repeated_rows": 0, "dropouts": 1}
+    assert reading_notes(rec.meta)[0] == "dropped 1 sample(s) with a non-finite value, interpolated across"
+
+
 # --- large angles: a spinning shaft, degrees, counts --------------------------------------
 
 
@@ -472,9 +499,11 @@ BAD_CSV: dict[str, tuple[str | bytes, list[str]]] = {
     "wrong header": (csv_text("time,u,q,theta,tau", valid_rows()), ["missing required column(s) t", "'time'"]),
     "text in numeric column": (csv_text(HEADER, rows_with(4, 2, "abc")), ["line 6", "column 'q'", "'abc' is not a number"]),
     "empty field": (csv_text(HEADER, rows_with(4, 3, "")), ["line 6", "column 'theta'", "'' is not a number"]),
-    "nan": (csv_text(HEADER, rows_with(3, 3, "nan")), ["'theta'", "nan", "sample 3 (line 5)"]),
+    "nan": (csv_text(HEADER, rows_with(3, 3, "nan")), ["'theta'", "nan", "sample 3 (line 5)", "--allow-gaps"]),
     "inf": (csv_text(HEADER, rows_with(7, 1, "-inf")), ["'u'", "-inf", "sample 7"]),
-    "duplicated time": (csv_text(HEADER, time_rows([0.001 * i for i in range(9)] + [0.008] + [0.01, 0.011])), ["duplicated", "sample 9", "t=0.008"]),
+    # the same time with other values (a row repeated whole is dropped: test_repeated_rows_are_dropped)
+    "duplicated time": (csv_text(HEADER, time_rows([0.001 * i for i in range(9)]) + [[repr(0.008), 1.0, 0.0, 0.0, 0.0]]
+                                 + time_rows([0.01, 0.011])), ["duplicated", "sample 9", "t=0.008"]),
     "decreasing time": (csv_text(HEADER, time_rows([0.001 * i for i in range(9)] + [0.005, 0.01, 0.011])), ["decreasing", "sample 9"]),
     "empty file": ("", ["empty file"]),
     "blank lines only": ("\n  \n\n", ["empty file"]),

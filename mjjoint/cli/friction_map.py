@@ -12,8 +12,7 @@ import sys
 import time
 
 from ..identify.friction_map import FRICTION_EFFECTS, FrictionLog, fit_friction_map
-from ..recordings import parse_column_map, parse_scales, read_signals
-from ..recordings.resample import describe
+from ..recordings import parse_column_map, parse_scales, read_signals, reading_notes
 from ..report.output import OutputDir
 from .errors import CliError
 
@@ -28,8 +27,8 @@ def read_logs(args: argparse.Namespace) -> FrictionLog:
     segments, rates = [], []
     for path in args.recording:
         signals, meta = read_signals(path, columns, scales, allow_gaps=args.allow_gaps, layout=LAYOUT)
-        if meta["resampled"] is not None:
-            print(f"note: {path}: {describe(meta['resampled'])}", file=sys.stderr)
+        for note in reading_notes(meta):
+            print(f"note: {path}: {note}", file=sys.stderr)
         t = signals["t"]
         segments.append((t, signals["q"], signals["tau"]))
         rates.append((len(t) - 1) / (t[-1] - t[0]))

@@ -57,7 +57,8 @@ def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
     r.add_argument("--columns", metavar="MAP", help="file names of the signals, e.g. t=time,u=cur,q=qm,theta=ql")
     r.add_argument("--scales", metavar="MAP", help="factors to SI, e.g. q=deg,theta=deg,u=2.5")
     r.add_argument("--allow-gaps", action="store_true",
-                   help="interpolate across time steps longer than 5 median periods instead of refusing")
+                   help="interpolate across time steps longer than 5 median periods, and across samples "
+                        "with a non-finite value (dropouts), instead of refusing")
     r.add_argument("--k-m", type=numbers, metavar="K",
                    help="torque constant [N m/A]: u is recorded as a current; K1,K2,... one per joint")
     r.add_argument("--joint", type=joint_numbers, metavar="J[,K]",

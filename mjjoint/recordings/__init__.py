@@ -4,7 +4,7 @@ from .columns import DEG, parse_column_map, parse_scales
 from .csv_io import write_recording
 from .errors import RecordingError
 from .model import MultiRecording, Recording
-from .read import read_recording, read_signals
+from .read import read_recording, read_signals, reading_notes
 
 __all__ = [
     "DEG",
@@ -15,5 +15,6 @@ __all__ = [
     "parse_scales",
     "read_recording",
     "read_signals",
+    "reading_notes",
     "write_recording",
 ]

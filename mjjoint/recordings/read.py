@@ -17,7 +17,8 @@ from .log_io import CLOCKS, LogTable, is_log_folder, read_log_table
 from .mat_io import read_mat_table
 from .model import MultiRecording, Recording
 from .npz_io import read_npz_table
-from .resample import to_uniform_grid
+from .repair import describe as describe_repair, repair
+from .resample import describe as describe_resampling, to_uniform_grid
 from .validate import Context, check_signals
 
 
@@ -67,7 +68,9 @@ def read_recording(
 
     Jittered or non-uniform timestamps are resampled onto a uniform grid by linear
     interpolation (resample.to_uniform_grid); meta['resampled'] says how, and is None for a
-    recording left as recorded.
+    recording left as recorded. Rows repeating the one before are dropped, and with
+    ``allow_gaps`` samples with a non-finite value too (repair.repair); meta['repaired'] says
+    how many, and is None where none was.
 
     Args:
         path: a .csv, .npz or .mat (v5) file.
@@ -77,7 +80,8 @@ def read_recording(
         gear_ratio: stored with the recording (motor angle q is before the gear).
         k_m: torque constant [N m/A]; when given, the u column holds a current and u = k_m i.
         allow_extra: accept CSV columns that no signal uses.
-        allow_gaps: interpolate across steps longer than 5 median periods instead of refusing.
+        allow_gaps: interpolate across steps longer than 5 median periods, and across samples
+            with a non-finite value, instead of refusing.
         timestep: [s] make the resampled period a multiple of it.
 
     Returns:
@@ -152,12 +156,20 @@ def read_signals(
                 f"{where}: unknown column(s) {listing(extra)}; allowed: {ALLOWED}{mapped}; "
                 "map them with --columns or pass allow_extra=True to ignore them"
             )
-    check_signals(signals, Context(where, sources, table.lines), allow_gaps)
+    signals, lines, repaired = repair(signals, allow_gaps, table.lines)
+    check_signals(signals, Context(where, sources, lines), allow_gaps)
     signals, resampled = to_uniform_grid(signals, timestep)
 
     meta = {"source": where, "format": "rosbag2" if path.is_dir() else path.suffix.lower()[1:], "columns": sources,
-            "scales": factors, "k_m": k_m, "resampled": merged or resampled}
+            "scales": factors, "k_m": k_m, "repaired": repaired, "resampled": merged or resampled}
     return signals, meta
+
+
+def reading_notes(meta: Mapping[str, Any]) -> list[str]:
+    """One line for each thing reading did to the recording as recorded: rows dropped
+    (``meta['repaired']``), resampling (``meta['resampled']``)."""
+    return [describe(meta[key]) for key, describe in (("repaired", describe_repair), ("resampled", describe_resampling))
+            if meta.get(key) is not None]
 
 
 def _build(signals: dict[str, np.ndarray], gear_ratio: float | None, meta: dict[str, Any]) -> Recording | MultiRecording:

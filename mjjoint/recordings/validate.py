@@ -69,7 +69,8 @@ def check_signals(signals: Mapping[str, np.ndarray], ctx: Context, allow_gaps: b
         if bad.size:
             i = int(bad[0])
             raise ctx.error(
-                f"column {ctx.column(name)} has {float(x[i])!r} at {ctx.sample(i)} ({bad.size} non-finite value(s))"
+                f"column {ctx.column(name)} has {float(x[i])!r} at {ctx.sample(i)} ({bad.size} non-finite value(s)); "
+                "pass allow_gaps=True (--allow-gaps) to drop such samples and interpolate across them"
             )
     check_time(t, ctx, allow_gaps)
     for name, x in signals.items():
