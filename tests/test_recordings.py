@@ -328,6 +328,32 @@ def test_dropouts_are_refused_unless_gaps_are_allowed_then_interpolated(tmp_path
     assert reading_notes(rec.meta)[0] == "dropped 1 sample(s) with a non-finite value, interpolated across"
 
 
+@pytest.mark.parametrize(("unit", "wrap"), [(1.0, lambda a: (a + np.pi) % (2 * np.pi) - np.pi),  # [-pi, pi) in rad
+                                           (np.pi / 180, lambda a: np.degrees(a) % 360.0)])  # [0, 360) in degrees
+def test_an_angle_read_within_one_turn_is_unwrapped(tmp_path: Path, unit: float, wrap) -> None:
+    t = np.arange(2000) / 1000.0
+    q = 9.0 * np.sin(2 * np.pi * t) + 0.2  # +-1.4 turns: wraps in both directions
+    path = tmp_path / "wrapped.csv"
+    path.write_text(csv_text("t,u,q,theta", [[repr(float(a)), 0.1, float(b), float(c)]
+                                              for a, b, c in zip(t, wrap(q), q / 100.0 / unit)]))
+    rec = read_recording(path, scales={"q": unit, "theta": unit})
+    turns = np.round((rec.q[0] - q[0]) / (2 * np.pi))  # the reading's first value fixes the turn
+    np.testing.assert_allclose(rec.q, q + 2 * np.pi * turns, atol=1e-9)
+    np.testing.assert_allclose(rec.theta, q / 100.0, atol=1e-9)  # never wrapped
+    assert set(rec.meta["unwrapped"]) == {"q"} and rec.meta["unwrapped"]["q"] >= 4
+    assert reading_notes(rec.meta)[0].startswith("unwrapped q (")
+
+
+def test_a_jump_that_is_not_whole_turns_is_left_to_the_checks(tmp_path: Path) -> None:
+    t = np.arange(N) * DT
+    q = np.where(t < 0.02, 0.0, 4.5)  # 4.5 rad in one sample: 1.8 rad off a whole turn
+    path = tmp_path / "jump.csv"
+    path.write_text(csv_text("t,u,q,theta", [[repr(float(a)), 0.1, float(b), 0.0] for a, b in zip(t, q)]))
+    rec = read_recording(path)
+    np.testing.assert_array_equal(rec.q, q)
+    assert rec.meta["unwrapped"] is None
+
+
 # --- large angles: a spinning shaft, degrees, counts --------------------------------------
 
 

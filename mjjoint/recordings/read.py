@@ -17,7 +17,7 @@ from .log_io import CLOCKS, LogTable, is_log_folder, read_log_table
 from .mat_io import read_mat_table
 from .model import MultiRecording, Recording
 from .npz_io import read_npz_table
-from .repair import describe as describe_repair, repair
+from .repair import describe as describe_repair, describe_unwrapped, repair, unwrap_angles
 from .resample import describe as describe_resampling, to_uniform_grid
 from .validate import Context, check_signals
 
@@ -70,7 +70,8 @@ def read_recording(
     interpolation (resample.to_uniform_grid); meta['resampled'] says how, and is None for a
     recording left as recorded. Rows repeating the one before are dropped, and with
     ``allow_gaps`` samples with a non-finite value too (repair.repair); meta['repaired'] says
-    how many, and is None where none was.
+    how many, and is None where none was. Angles read within one revolution are unwrapped
+    (repair.unwrap_angles; meta['unwrapped']: the jumps per angle, or None).
 
     Args:
         path: a .csv, .npz or .mat (v5) file.
@@ -157,18 +158,22 @@ def read_signals(
                 "map them with --columns or pass allow_extra=True to ignore them"
             )
     signals, lines, repaired = repair(signals, allow_gaps, table.lines)
+    signals, turns = unwrap_angles(signals)
     check_signals(signals, Context(where, sources, lines), allow_gaps)
     signals, resampled = to_uniform_grid(signals, timestep)
 
     meta = {"source": where, "format": "rosbag2" if path.is_dir() else path.suffix.lower()[1:], "columns": sources,
-            "scales": factors, "k_m": k_m, "repaired": repaired, "resampled": merged or resampled}
+            "scales": factors, "k_m": k_m, "repaired": repaired,
+            "unwrapped": turns or None, "resampled": merged or resampled}
     return signals, meta
 
 
 def reading_notes(meta: Mapping[str, Any]) -> list[str]:
     """One line for each thing reading did to the recording as recorded: rows dropped
-    (``meta['repaired']``), resampling (``meta['resampled']``)."""
-    return [describe(meta[key]) for key, describe in (("repaired", describe_repair), ("resampled", describe_resampling))
+    (``meta['repaired']``), angles unwrapped (``meta['unwrapped']``), resampling
+    (``meta['resampled']``)."""
+    return [describe(meta[key]) for key, describe in (("repaired", describe_repair), ("unwrapped", describe_unwrapped),
+                                                     ("resampled", describe_resampling))
             if meta.get(key) is not None]
 
 
