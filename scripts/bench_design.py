@@ -60,6 +60,8 @@ def main() -> None:
     ap.add_argument("--refine", type=int, default=6, help="Nelder-Mead evaluations")
     ap.add_argument("--draws", type=int, default=2, help="parameter draws per rival")
     ap.add_argument("--max-iter", type=int, default=10, help="LM iterations per fit")
+    ap.add_argument("--push", type=int, default=SearchOptions().push,
+                    help="evaluations spent searching on from the chirp where nothing beats it")
     ap.add_argument("--rehearse", type=int, default=2, help="best inputs whose decision is rehearsed")
     ap.add_argument("--loop", action="store_true", help="closed loop: design references for a PD on the motor")
     ap.add_argument("--duration", type=float, default=LIMITS.duration, help="original and designed record [s]")
@@ -67,7 +69,8 @@ def main() -> None:
                     help="design only the draws whose original recording tied (the others: one line, no design)")
     ap.add_argument("--json", help="write every case's result here")
     args = ap.parse_args()
-    options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws, rehearse=args.rehearse)
+    options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws, rehearse=args.rehearse,
+                            push=args.push)
     loop = Controller() if args.loop else None
     limits = dataclasses.replace(LIMITS, duration=args.duration)
     print(f"limits: {limits}; search: {options}; loop: {loop}; load average {os.getloadavg()[0]:.1f}")
@@ -99,6 +102,8 @@ def main() -> None:
                       f"{r['truth_usage']:.2f}{'' if not r['truth_violations'] else ' (NO)'} | "
                       f"{r['D_heldout']:.3g} | {rehearsed} | {r['llr']:.3g} | "
                       f"{r['winner']}{'' if r['correct'] else ' (wrong)'} | {r['p']:.2g} |", flush=True)
+                if r["unbeaten"]:
+                    print(f"(no better than the chirp: {r['unbeaten']})", flush=True)
     print(f"\n{time.perf_counter() - start:.0f} s in all")
     for pair in [*args.pairs.split(","), None]:
         drawn = [r for r in results if pair is None or r["pair"] == pair]

@@ -129,7 +129,7 @@ def run_case(case: DesignCase, limits: Limits, options: SearchOptions, max_iter:
     share = len(held.test) / len(held.starts)
     # The limits on the truth's own run of the designed input (the rivals' were checked in design).
     return {**found, "family": d.best.family, "D": d.best.score, "D_heldout": share * d.best.score,
-            "D_chirp": d.reference.score,
+            "D_chirp": d.reference.score, "unbeaten": d.unbeaten,
             "chirp_usage": d.reference.usage, "chirp_feasible": d.reference.feasible, "usage": d.best.usage,
             "truth_violations": violations(truth_run, limits, "truth"), "truth_usage": usage(truth_run, limits),
             "loop": d.loop is not None,
