@@ -215,8 +215,12 @@ def run(args: argparse.Namespace) -> int:
     run_data["seconds"] = round(time.perf_counter() - start, 3)
     with out.staged() as folder:
         write_design(folder, d, run_data)
-    print(f"designed: {d.best.family}, {limits.duration:g} s; expected log-likelihood ratio "
-          f"{d.best.score:.3g} nats (default chirp {d.reference.score:.3g})")
+    print(f"designed: {d.best.family}, {limits.duration:g} s; expected log-likelihood ratio for the rivals as "
+          f"fitted {d.best.score:.3g} nats (default chirp {d.reference.score:.3g}), "
+          f"{d.heldout_discrimination:.3g} over the held-out windows the decision compares")
+    if d.conservative is not None:
+        print(f"conservative figure: {d.conservative:.3g} nats (the smaller rehearsed decision's ratio; how often the "
+              f"realised ratio reaches each figure: docs/design-experiments.md, Calibration)")
     if d.unbeaten:
         print(f"the design is no better than the default chirp: {d.unbeaten}")
     if loop is None:

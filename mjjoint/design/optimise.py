@@ -126,6 +126,19 @@ class Design:
     unbeaten: str | None = None      # why nothing beat the chirp by min_gain (None: the design does, or no chirp)
 
     @property
+    def heldout_discrimination(self) -> float:
+        """D scaled to the held-out windows the decision compares (D counts every window): the
+        expected log-likelihood ratio of the decision, for the rivals as fitted."""
+        return self.best.score * float(np.mean(self.best.windowed[0].holdout))
+
+    @property
+    def conservative(self) -> float | None:
+        """The smaller of the chosen input's two rehearsed decisions' log-likelihood ratios (None:
+        not rehearsed): the figure the realised ratio reached in most benchmark draws
+        (docs/design-experiments.md, Calibration), where D held-out over- or understates it."""
+        return None if self.best.rehearsal is None else self.best.rehearsal.score
+
+    @property
     def beats_reference(self) -> bool | None:
         """Whether the design beats the chirp (None: the chirp breaks the limits, no comparison)."""
         return None if not self.reference.feasible else self.unbeaten is None
@@ -151,20 +164,28 @@ class Evaluator:
         self.evaluated: list[tuple[str, tuple[float, ...], float, float]] = []
         self._seen: dict[tuple, Candidate] = {}
 
-    def input(self, family: str, point, excitation, u: np.ndarray, score_past_limits: bool = False) -> Candidate:
+    def input(self, family: str, point, excitation, u: np.ndarray, score_past_limits: bool = False,
+              stop_early: bool = False) -> Candidate:
         """Run and score one input. An input past a limit is not scored (``score`` None; the
         search only needs how far past it is), nor run for the parameter draws where the
         fitted models' runs already break a limit (its usage is then at least that), unless
         ``score_past_limits``: half the search's evaluations and most of the reference's
-        bisection used to go on scoring inputs that could never be chosen."""
+        bisection used to go on scoring inputs that could never be chosen. ``stop_early``: not
+        even the second rival's run once the first breaks a limit (whether it does is all
+        that is asked)."""
+        traces, runs = [], []
         try:
-            traces = tuple(m.run(u) for m in self.models)
-            runs = [shares(tr, self.limits, self.margin) for tr in traces]
+            for m in self.models:
+                traces.append(m.run(u))
+                runs.append(shares(traces[-1], self.limits, self.margin))
+                if stop_early and max(runs[-1].values()) > 1.0:
+                    break
             if score_past_limits or max(v for r in runs for v in r.values()) <= 1.0:
                 runs += [shares(tr, self.limits, self.margin) for m in self.models for tr in m.draw_runs(u)]
         except Diverged:
             cand = Candidate(family, tuple(point), excitation, u, 0.0, np.inf, None)
         else:
+            traces = tuple(traces)
             share = {k: max(r[k] for r in runs) for k in runs[0]}
             use = max(share.values())
             if use > 1.0 and not score_past_limits:
@@ -206,7 +227,7 @@ def reference(ev: "Evaluator", limits: Limits) -> Candidate:
     for k in range(REFERENCE_TRIES):
         scale = 1.0 if k == 0 else 0.5 * (lo + hi)
         chirp = default_chirp(ev.peak, scale)
-        last = ev.input("default chirp", (), chirp, chirp.sample(limits.rate, limits.duration))
+        last = ev.input("default chirp", (), chirp, chirp.sample(limits.rate, limits.duration), stop_early=True)
         if last.feasible:
             feasible, lo = last, scale
             if k == 0:
