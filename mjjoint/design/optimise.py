@@ -42,7 +42,7 @@ from .response import Diverged, RivalModel, Windowed, windowed
 from .rivals import Rival
 
 _WORST = 1e9  # objective of an input under which a rival diverges
-REFERENCE_TRIES = 6  # amplitudes of the default chirp tried, bisecting towards the limits
+REFERENCE_TRIES = 6  # halvings of the default chirp's amplitude tried before it keeps within the limits
 PUSH_STEP = 0.15     # first step of the compass search past the chirp (coordinates in [0, 1])
 PUSH_SMALLEST = 0.02  # the compass search stops refining below this step
 PUSH_STARTS = 3      # points the compass search goes on from: the chirp's, then the best others
@@ -165,14 +165,15 @@ class Evaluator:
         self._seen: dict[tuple, Candidate] = {}
 
     def input(self, family: str, point, excitation, u: np.ndarray, score_past_limits: bool = False,
-              stop_early: bool = False) -> Candidate:
+              stop_early: bool = False, score: bool = True) -> Candidate:
         """Run and score one input. An input past a limit is not scored (``score`` None; the
         search only needs how far past it is), nor run for the parameter draws where the
         fitted models' runs already break a limit (its usage is then at least that), unless
         ``score_past_limits``: half the search's evaluations and most of the reference's
         bisection used to go on scoring inputs that could never be chosen. ``stop_early``: not
         even the second rival's run once the first breaks a limit (whether it does is all
-        that is asked)."""
+        that is asked); ``score`` False: not scored even within the limits (``scored`` does it
+        later)."""
         traces, runs = [], []
         try:
             for m in self.models:
@@ -188,15 +189,19 @@ class Evaluator:
             traces = tuple(traces)
             share = {k: max(r[k] for r in runs) for k in runs[0]}
             use = max(share.values())
-            if use > 1.0 and not score_past_limits:
-                cand = Candidate(family, tuple(point), excitation, u, None, use, traces, shares=share)
-                self.evaluated.append((family, cand.point, cand.score, cand.usage))
-                return cand
-            floor = self.noise if self.noise is not None else input_floor(self.models, traces, self.window)
-            ws = tuple(windowed(self.models, tr, k, self.window) for k, tr in enumerate(traces))
-            score = discrimination(list(ws), floor, self.limits.signals)
-            cand = Candidate(family, tuple(point), excitation, u, score, use, traces, ws, floor, shares=share)
+            cand = Candidate(family, tuple(point), excitation, u, None, use, traces, shares=share)
+            if score and (use <= 1.0 or score_past_limits):
+                return self.scored(cand)
         self.evaluated.append((family, cand.point, cand.score, cand.usage))
+        return cand
+
+    def scored(self, cand: Candidate) -> Candidate:
+        """``cand`` with its D, the windowed predictions and the floor it was computed with."""
+        traces = cand.traces
+        cand.floor = self.noise if self.noise is not None else input_floor(self.models, traces, self.window)
+        cand.windowed = tuple(windowed(self.models, tr, k, self.window) for k, tr in enumerate(traces))
+        cand.score = discrimination(list(cand.windowed), cand.floor, self.limits.signals)
+        self.evaluated.append((cand.family, cand.point, cand.score, cand.usage))
         return cand
 
     def point(self, family: str, point) -> Candidate:
@@ -218,25 +223,36 @@ def default_chirp(peak: float, scale: float = 1.0) -> Chirp:
                  f_end=base.f_end, sweep=base.sweep)
 
 
-def reference(ev: "Evaluator", limits: Limits) -> Candidate:
-    """The default chirp at the largest amplitude (bisected, REFERENCE_TRIES runs) at which both
-    rivals' runs keep within the limits: the fair comparison for a designed experiment. Where
-    even the smallest tried amplitude breaks a limit (a rival whose offset alone drives the link
-    out of range), that run is returned, infeasible, scored all the same."""
-    lo, hi, feasible, last = 0.0, 1.0, None, None
-    for k in range(REFERENCE_TRIES):
-        scale = 1.0 if k == 0 else 0.5 * (lo + hi)
+def reference(ev: "Evaluator", limits: Limits, tolerance: float) -> Candidate:
+    """The default chirp at the largest amplitude at which both rivals' runs keep within the
+    limits, to within a factor ``1 + tolerance``: the fair comparison for a designed experiment.
+    The amplitude is halved (up to REFERENCE_TRIES times) until it keeps within them, then
+    bisected geometrically between the last two; only the chosen one is scored. Where even the
+    smallest tried amplitude breaks a limit (a rival whose offset alone drives the link out of
+    range), that run is returned, infeasible, scored all the same."""
+    def attempt(scale: float) -> Candidate:
         chirp = default_chirp(ev.peak, scale)
-        last = ev.input("default chirp", (), chirp, chirp.sample(limits.rate, limits.duration), stop_early=True)
+        return ev.input("default chirp", (), chirp, chirp.sample(limits.rate, limits.duration),
+                        stop_early=True, score=False)
+
+    scale, hi, found, last = 1.0, None, None, None
+    for _ in range(REFERENCE_TRIES):
+        last = attempt(scale)
         if last.feasible:
-            feasible, lo = last, scale
-            if k == 0:
-                break
+            found = last
+            break
+        hi, scale = scale, scale / 2
+    if found is None:
+        return ev.input("default chirp", (), last.excitation, last.u, score_past_limits=True)
+    lo = scale
+    while hi is not None and hi / lo > 1 + tolerance:
+        mid = float(np.sqrt(lo * hi))
+        c = attempt(mid)
+        if c.feasible:
+            lo, found = mid, c
         else:
-            hi = scale
-    if feasible is not None:
-        return feasible
-    return ev.input("default chirp", (), last.excitation, last.u, score_past_limits=True)
+            hi = mid
+    return ev.scored(found)
 
 
 def design(rivals: tuple[Rival, Rival], noise: dict[str, float] | None, limits: Limits,
@@ -272,7 +288,9 @@ def design(rivals: tuple[Rival, Rival], noise: dict[str, float] | None, limits: 
             progress(len(ev.evaluated), best.score if best.feasible else 0.0)
         return c
 
-    ref = reference(ev, limits)
+    # The chirp's amplitude to within the square root of the gain: D grows as the square of a
+    # linear response's amplitude, so the chirp itself, a little louder, cannot pass for a design.
+    ref = reference(ev, limits, float(np.sqrt(1 + options.min_gain)) - 1)
     seed_point = (chirp_point(ref.excitation, limits, ev.peak, ev.loop is not None, nearest=True)
                   if "chirp" in options.families and ref.feasible else None)
     for family in options.families:
