@@ -37,16 +37,23 @@ TIE = 0.05  # a draw counts where the worse rival's original held-out cost is wi
 def calibration(results: list[dict]) -> None:
     """How far each prediction of the decision's log-likelihood ratio is from the realised one,
     over the designed draws named correctly (the realised ratio then positive): the median ratio
-    predicted / realised, its range, and the share within a factor of 10 either way."""
+    predicted / realised, its range, and the share within a factor of 10 either way; and over
+    every designed draw, how often the realised ratio reached the prediction (the prediction a
+    conservative figure there)."""
     ok = [r for r in results if r.get("correct") and r.get("rehearsed") is not None and r["llr"] > 0]
+    designed = [r for r in results if r.get("family") is not None and r.get("rehearsed") is not None]
     for name, key in (("D held-out", "D_heldout"), ("rehearsed (truth's side)", "rehearsed_truth_side"),
                       ("rehearsed (min)", "rehearsed")):
         ratios = np.array([r[key] / r["llr"] for r in ok])
         pos = ratios[ratios > 0]
+        covered = sum(r["llr"] >= r[key] for r in designed)
+        print(f"calibration, {name}: the realised ratio at least this in {covered}/{len(designed)} designed draws",
+              end="")
         if not len(pos):
+            print()
             continue
         within = np.mean((pos >= 0.1) & (pos <= 10.0)) * len(pos) / len(ratios)
-        print(f"calibration, {name} / realised over {len(ratios)} correct draws: median {np.median(pos):.3g} "
+        print(f"; / realised over {len(ratios)} correct draws: median {np.median(pos):.3g} "
               f"({pos.min():.2g} to {pos.max():.2g}; {len(ratios) - len(pos)} not positive), "
               f"within a factor 10 in {within:.0%}")
 
@@ -60,14 +67,23 @@ def main() -> None:
     ap.add_argument("--refine", type=int, default=6, help="Nelder-Mead evaluations")
     ap.add_argument("--draws", type=int, default=2, help="parameter draws per rival")
     ap.add_argument("--max-iter", type=int, default=10, help="LM iterations per fit")
+    ap.add_argument("--push", type=int, default=SearchOptions().push,
+                    help="evaluations spent searching on from the chirp where nothing beats it")
     ap.add_argument("--rehearse", type=int, default=2, help="best inputs whose decision is rehearsed")
     ap.add_argument("--loop", action="store_true", help="closed loop: design references for a PD on the motor")
     ap.add_argument("--duration", type=float, default=LIMITS.duration, help="original and designed record [s]")
     ap.add_argument("--tied-only", action="store_true",
                     help="design only the draws whose original recording tied (the others: one line, no design)")
     ap.add_argument("--json", help="write every case's result here")
+    ap.add_argument("--calibration", metavar="JSON", help="only print the calibration of the results in JSON "
+                    "(a --json file of an earlier run)")
     args = ap.parse_args()
-    options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws, rehearse=args.rehearse)
+    if args.calibration:
+        with open(args.calibration, encoding="utf-8") as f:
+            calibration(json.load(f))
+        return
+    options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws, rehearse=args.rehearse,
+                            push=args.push)
     loop = Controller() if args.loop else None
     limits = dataclasses.replace(LIMITS, duration=args.duration)
     print(f"limits: {limits}; search: {options}; loop: {loop}; load average {os.getloadavg()[0]:.1f}")
@@ -99,6 +115,8 @@ def main() -> None:
                       f"{r['truth_usage']:.2f}{'' if not r['truth_violations'] else ' (NO)'} | "
                       f"{r['D_heldout']:.3g} | {rehearsed} | {r['llr']:.3g} | "
                       f"{r['winner']}{'' if r['correct'] else ' (wrong)'} | {r['p']:.2g} |", flush=True)
+                if r["unbeaten"]:
+                    print(f"(no better than the chirp: {r['unbeaten']})", flush=True)
     print(f"\n{time.perf_counter() - start:.0f} s in all")
     for pair in [*args.pairs.split(","), None]:
         drawn = [r for r in results if pair is None or r["pair"] == pair]

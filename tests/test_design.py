@@ -77,10 +77,11 @@ def test_the_criterion_is_zero_between_identical_rivals_and_scales_as_one_over_n
     a, b, limits, noise = pair_evaluator
     opts = SearchOptions(draws=0)
     twin = Rival("input_offset", a.structure)
-    same = Evaluator((a, twin), noise, limits, opts).point("dwell_reverse", [0.6, 0.5, 0.4])
-    assert same.score == 0.0
+    point = [0.2, 0.5, 0.4]  # within the limits: an input past one is not scored
+    same = Evaluator((a, twin), noise, limits, opts).point("dwell_reverse", point)
+    assert same.feasible and same.score == 0.0
     ev = Evaluator((a, b), noise, limits, opts)
-    c1 = ev.point("dwell_reverse", [0.6, 0.5, 0.4])
+    c1 = ev.point("dwell_reverse", point)
     ws = list(c1.windowed)
     doubled = {k: 2 * v for k, v in noise.items()}
     assert c1.score > 0
@@ -111,19 +112,22 @@ def test_design_cli_refuses_bad_input_in_one_line(tmp_path, capsys):
 
 def test_short_case_designs_within_limits_beats_the_chirp_and_names_the_truth():
     """offset vs asymmetry, truth with an input offset: one draw, a small search, a reference for
-    the default PD (as the acceptance benchmark)."""
+    the default PD (as the acceptance benchmark). One Sobol point of two families: the chirp is
+    the best they find, so the search goes on from it (``SearchOptions.push``)."""
     from mjjoint.rehearse import Controller
     case = make_design_case("offset_asymmetry", 0, 1, duration=5.0)
     limits = Limits(max_torque=0.2, max_speed=80.0, angle_range=1.0, duration=6.0)
-    result = run_case(case, limits, SearchOptions(starts=2, refine=0, draws=2, rehearse=1, rehearse_iter=3,
-                                                  families=("dwell_reverse", "multisine")), max_iter=6,
-                      loop=Controller())
+    options = SearchOptions(starts=1, refine=0, draws=2, rehearse=1, rehearse_iter=3,
+                            families=("chirp", "dwell_reverse"))
+    result = run_case(case, limits, options, max_iter=6, loop=Controller())
     assert result.get("error") is None and result["usage"] <= 1.0 and not result["truth_violations"]
     assert result["rehearsed"] > 0 and result["llr"] > 0  # the rehearsal and the decision both name the truth
-    # The chirp at the largest amplitude within the limits (itself a candidate: the design is at
-    # least as good); none may exist (the offset alone can drive the link out of range): then it
-    # is no comparison, and says so.
-    assert result["D"] >= result["D_chirp"] if result["chirp_feasible"] else result["chirp_usage"] > 1
+    # The chirp at the largest amplitude within the limits; none may exist (the offset alone can
+    # drive the link out of range): then it is no comparison, and says so.
+    if result["chirp_feasible"]:
+        assert result["D"] > (1 + options.min_gain) * result["D_chirp"] and result["unbeaten"] is None
+    else:
+        assert result["chirp_usage"] > 1
     assert result["winner"] == "input_offset"
 
 
@@ -188,6 +192,8 @@ def test_design_writes_the_experiment_the_simulator_reads_and_never_one_past_a_l
     with out.staged() as folder:
         data = write_design(folder, d, {"command": "design"})
     assert data["discrimination_nats"] == d.best.score > 0
+    # The decision compares the held-out windows only; not rehearsed: no conservative figure.
+    assert 0 < data["discrimination_heldout_nats"] < d.best.score and data["conservative_nats"] is None
     exp = FromFile(out.path / "experiment.csv")
     assert np.array_equal(exp.sample(limits.rate, limits.duration), d.best.u)
     marks = separated(d)
@@ -251,7 +257,25 @@ def test_the_designed_input_beats_a_same_length_default_chirp_on_the_criterion(p
     assert d.reference.feasible and len(d.reference.u) == len(d.best.u)
     # The search starts from the default chirp too (a point of the chirp family): it can only gain.
     assert any(f == "chirp" and s == pytest.approx(d.reference.score, rel=1e-6) for f, p, s, u in d.evaluated)
-    assert d.best.score > d.reference.score > 0 and d.best.usage <= 1.0
+    assert d.best.score > (1 + SearchOptions().min_gain) * d.reference.score > 0 and d.best.usage <= 1.0
+    assert d.beats_reference and d.unbeaten is None
+
+
+def test_where_the_chirp_is_the_best_found_the_search_goes_on_from_it_until_it_beats_it(pair_evaluator):
+    """One Sobol point of the chirp family and the default chirp's own point: the chirp is the
+    best found. The search then goes on from it (within the same limits and margin) until D
+    beats the chirp's by the stated gain; without that budget the design is the chirp, and it
+    says which limit the chirp sits against."""
+    from mjjoint.design import design
+    a, b, limits, noise = pair_evaluator
+    options = SearchOptions(starts=1, refine=0, draws=0, rehearse=0, families=("chirp",))
+    d = design((a, b), noise, limits, options)
+    assert d.best.score > (1 + options.min_gain) * d.reference.score > 0
+    assert d.best.usage <= 1.0 and d.beats_reference and d.unbeaten is None
+    stopped = design((a, b), noise, limits, SearchOptions(starts=1, refine=0, draws=0, rehearse=0,
+                                                          families=("chirp",), push=0))
+    assert stopped.best.score == pytest.approx(stopped.reference.score) and stopped.beats_reference is False
+    assert "motor speed limit" in stopped.unbeaten and len(d.evaluated) > len(stopped.evaluated)
 
 
 def test_an_inputs_noise_floor_is_its_own_recordings_windowed_prediction_error(pair_evaluator):
@@ -262,7 +286,7 @@ def test_an_inputs_noise_floor_is_its_own_recordings_windowed_prediction_error(p
     ev = Evaluator((a, b), None, limits, SearchOptions(draws=0))
     t = np.arange(limits.samples) / limits.rate
     slow = ev.input("sine", (), None, 0.02 * np.sin(2 * np.pi * 0.5 * t))
-    fast = ev.input("one way", (), None, np.full(limits.samples, 0.09))
+    fast = ev.input("one way", (), None, np.full(limits.samples, 0.09), score_past_limits=True)  # past the speed limit
     assert slow.floor == input_floor(ev.models, slow.traces, ev.window)  # deterministic
     assert fast.floor["q"] > 10 * slow.floor["q"] > 0
     assert all(v > 0 for v in slow.floor.values())

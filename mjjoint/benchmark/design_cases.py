@@ -124,16 +124,13 @@ def run_case(case: DesignCase, limits: Limits, options: SearchOptions, max_iter:
     truth_run = truth_model.run(d.best.u)
     new = logged(truth_run, Sensors(seed=case.seed + 100))
     decision = decide(rivals, new, d.noise, max_iter=max_iter)
-    # D counts every window of the run, the decision only the held-out ones.
-    held = Predictor(Measured.from_recording(new, case.truth.gear_ratio))
-    share = len(held.test) / len(held.starts)
     # The limits on the truth's own run of the designed input (the rivals' were checked in design).
-    return {**found, "family": d.best.family, "D": d.best.score, "D_heldout": share * d.best.score,
-            "D_chirp": d.reference.score,
+    return {**found, "family": d.best.family, "D": d.best.score, "D_heldout": d.heldout_discrimination,
+            "D_chirp": d.reference.score, "unbeaten": d.unbeaten,
             "chirp_usage": d.reference.usage, "chirp_feasible": d.reference.feasible, "usage": d.best.usage,
             "truth_violations": violations(truth_run, limits, "truth"), "truth_usage": usage(truth_run, limits),
             "loop": d.loop is not None,
-            "rehearsed": None if d.best.rehearsal is None else d.best.rehearsal.score,
+            "rehearsed": d.conservative,
             # the rehearsal whose recording came from the rival with the truth's effect
             "rehearsed_truth_side": None if d.best.rehearsal is None else
             d.best.rehearsal.evidence[[r.effect for r in rivals].index(case.truth_effect)],

@@ -115,6 +115,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help=f"Nelder-Mead evaluations from the best (default {opt.refine})")
     s.add_argument("--draws", type=int, default=opt.draws, metavar="K",
                    help=f"parameter draws per rival for its prediction spread (default {opt.draws})")
+    s.add_argument("--push", type=int, default=opt.push, metavar="K",
+                   help=f"evaluations spent searching on from the default chirp where nothing found beats it by "
+                        f"{opt.min_gain:.0%} (default {opt.push})")
     s.add_argument("--rehearse", type=int, default=opt.rehearse, metavar="K",
                    help=f"best inputs whose decision is rehearsed on simulated recordings (default {opt.rehearse})")
     s.add_argument("--max-iter", type=int, default=15, metavar="K", help="LM iterations of each fit (default 15)")
@@ -154,7 +157,8 @@ def run(args: argparse.Namespace) -> int:
 
     limits = limits_from_args(args)
     try:
-        options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws, rehearse=args.rehearse)
+        options = SearchOptions(starts=args.starts, refine=args.refine, draws=args.draws, rehearse=args.rehearse,
+                                push=args.push)
     except ValueError as exc:
         raise CliError(str(exc)) from None
     if args.controller is None and (args.on or args.gains):
@@ -211,8 +215,14 @@ def run(args: argparse.Namespace) -> int:
     run_data["seconds"] = round(time.perf_counter() - start, 3)
     with out.staged() as folder:
         write_design(folder, d, run_data)
-    print(f"designed: {d.best.family}, {limits.duration:g} s; expected log-likelihood ratio "
-          f"{d.best.score:.3g} nats (default chirp {d.reference.score:.3g})")
+    print(f"designed: {d.best.family}, {limits.duration:g} s; expected log-likelihood ratio for the rivals as "
+          f"fitted {d.best.score:.3g} nats (default chirp {d.reference.score:.3g}), "
+          f"{d.heldout_discrimination:.3g} over the held-out windows the decision compares")
+    if d.conservative is not None:
+        print(f"conservative figure: {d.conservative:.3g} nats (the smaller rehearsed decision's ratio; how often the "
+              f"realised ratio reaches each figure: docs/design-experiments.md, Calibration)")
+    if d.unbeaten:
+        print(f"the design is no better than the default chirp: {d.unbeaten}")
     if loop is None:
         print(f"run it: mjjoint simulate --excitation file --file {out.path / 'experiment.csv'}")
     else:

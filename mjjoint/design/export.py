@@ -38,11 +38,14 @@ def summary(d: Design) -> dict:
                                                                  **dataclasses.asdict(exc)},
                            "file": "experiment.csv", "loop": "open" if d.loop is None else "closed",
                            **({} if d.loop is None else {"controller": d.loop.describe()})},
-            "discrimination_nats": best.score,
+            "discrimination_nats": best.score,   # for the rivals as fitted, every window
+            "discrimination_heldout_nats": d.heldout_discrimination,
+            "conservative_nats": d.conservative,
             "rehearsed": [{"family": c.family, "point": list(c.point), "discrimination_nats": c.score,
                            **c.rehearsal.as_dict()} for c in d.rehearsed],
             "default_chirp": {"discrimination_nats": ref.score, "limit_usage": ref.usage,
-                              "excitation": dataclasses.asdict(ref.excitation)},
+                              "excitation": dataclasses.asdict(ref.excitation),
+                              "beaten": d.beats_reference, "why_not_beaten": d.unbeaten},
             "limit_usage": {r.effect: usage(tr, d.limits) for r, tr in zip(d.rivals, best.traces)},
             "limits": dataclasses.asdict(d.limits), "noise_floor": d.noise,
             "rivals": [r.describe() for r in d.rivals],
@@ -145,8 +148,12 @@ def page(data: dict, run: dict) -> str:
                "controller, <code>mjjoint simulate --controller ... --limit MAX_TORQUE --reference "
                "experiment.csv</code>).</p>\n")
             + 
-            f"<p>Expected log-likelihood ratio between the rivals: <b>{data['discrimination_nats']:.4g} nats</b> "
-            f"(the default chirp of the same length: {data['default_chirp']['discrimination_nats']:.4g}).</p>\n"
+            f"<p>Expected log-likelihood ratio between the rivals as fitted: <b>{data['discrimination_nats']:.4g} "
+            f"nats</b> (the default chirp of the same length: {data['default_chirp']['discrimination_nats']:.4g}), "
+            f"{data['discrimination_heldout_nats']:.4g} over the held-out windows the decision compares"
+            + ("" if data["conservative_nats"] is None else
+               f"; conservative figure (the smaller rehearsed decision's): {data['conservative_nats']:.4g} nats")
+            + ".</p>\n"
             f"<table><tr><th>rival</th><th>largest share of a limit used</th></tr>{rows}</table>\n"
             "<p><img src=\"responses.png\" alt=\"both rivals' predicted responses\" style=\"max-width:100%\"></p>\n"
             "<p>Shaded: where the rivals' predictions differ by more than the noise floor plus their "

@@ -97,16 +97,17 @@ def chirp(p, limits: Limits, peak: float, amplitude=_amplitude) -> Chirp:
                  f_end=_log_between(p[2], lo, hi), sweep="linear")
 
 
-def chirp_point(c: Chirp, limits: Limits, peak: float,
-                log_amplitude: bool = False) -> tuple[float, float, float] | None:
+def chirp_point(c: Chirp, limits: Limits, peak: float, log_amplitude: bool = False,
+                nearest: bool = False) -> tuple[float, float, float] | None:
     """The ``chirp`` family's coordinates of the linear chirp ``c``, None where it lies outside
-    the family (amplitude or frequencies out of range)."""
+    the family (amplitude or frequencies out of range), or with ``nearest`` its nearest member's
+    (a chirp of the same sweep below the family's smallest amplitude: the smallest)."""
     lo, hi = band(limits)
     share = c.amplitude / peak
     point = ((math.log(share / MIN_SHARE) / math.log(1 / MIN_SHARE) if log_amplitude and share > 0
               else (share - MIN_SHARE) / (1 - MIN_SHARE)),
              *(math.log(f / lo) / math.log(hi / lo) for f in (c.f_start, c.f_end)))
-    if c.sweep != "linear" or not all(-1e-12 <= v <= 1 + 1e-12 for v in point):
+    if c.sweep != "linear" or not (nearest or all(-1e-12 <= v <= 1 + 1e-12 for v in point)):
         return None
     return tuple(float(np.clip(v, 0.0, 1.0)) for v in point)
 

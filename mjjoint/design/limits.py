@@ -54,12 +54,17 @@ def _peaks(trace, limits: Limits):
             ("link excursion", float(np.max(np.abs(trace.theta - trace.theta[0]))), limits.angle_range, "rad"))
 
 
-def usage(trace, limits: Limits, margin: float = 1.0) -> float:
-    """The largest share of a limit a simulated run uses (1: on a limit; > 1: past it), the
+def shares(trace, limits: Limits, margin: float = 1.0) -> dict[str, float]:
+    """Per limit, the share of it a simulated run uses (1: on the limit; > 1: past it), the
     plant-dependent ones (speed, excursion) taken as ``margin`` times their limit; the torque is
     what is commanded, exact."""
-    return max(value / (limit if name == "torque" else margin * limit)
-               for name, value, limit, _ in _peaks(trace, limits))
+    return {name: value / (limit if name == "torque" else margin * limit)
+            for name, value, limit, _ in _peaks(trace, limits)}
+
+
+def usage(trace, limits: Limits, margin: float = 1.0) -> float:
+    """The largest share of a limit a simulated run uses (``shares``)."""
+    return max(shares(trace, limits, margin).values())
 
 
 def violations(trace, limits: Limits, who: str) -> list[str]:

@@ -92,7 +92,8 @@ class Windowed:
     """Both rivals' windowed predictions in the run of rival ``truth`` (cost samples only, as
     windows x samples per signal): each fitted model's, the variance of its draws' about it,
     and the other rival's sensitivities (one prediction per parameter, stepped by ``steps`` in
-    the optimiser's coordinates); ``samples``: the run's sample index of each."""
+    the optimiser's coordinates); ``samples``: the run's sample index of each; ``holdout``: the
+    windows a decision on this run compares (the fits' held-out split)."""
 
     truth: int
     samples: np.ndarray
@@ -100,6 +101,7 @@ class Windowed:
     var: tuple[dict[str, np.ndarray], dict[str, np.ndarray]]
     stepped: list[dict[str, np.ndarray]]
     steps: np.ndarray
+    holdout: np.ndarray | None = None
 
 
 def sensitivity_steps(structure) -> tuple[list, np.ndarray]:
@@ -138,4 +140,4 @@ def windowed(models: tuple[RivalModel, RivalModel], trace: Trace, truth: int, wi
         vars_.append({s: (np.nanmean([(d[s] - own[s]) ** 2 for d in drawn], axis=0) if drawn
                           else np.zeros_like(own[s])) for s in keep})
     return Windowed(truth, predictor.samples[:, cols], tuple(means), tuple(vars_),
-                    [pick(p) for p in preds[k:]], steps)
+                    [pick(p) for p in preds[k:]], steps, np.asarray(predictor.holdout, bool))
