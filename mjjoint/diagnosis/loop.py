@@ -23,7 +23,9 @@ Each round:
    round starts;
 5. when no candidate passes, the final structure's parameters are estimated once more under the
    robust loss over windows (``identify.fit``, ``robust=True``; ``DiagnoseOptions.robust_final``),
-   kept only if that lowers the held-out cost.
+   kept only if that lowers the held-out cost; unless they already are such an estimate (the
+   last addition's or revision's robust refit, kept, and nothing refitted since): that fit
+   would start at its own optimum.
 The base fit and every screen are least squares: while a structure is being searched, the
 windows it predicts worst are where missing physics shows, and a robust fit would discount them
 as outliers (20 s dynamic_friction case, robust fits throughout: 2SEP still lowers the held-out
@@ -415,7 +417,9 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             revisions += done
             if done:
                 history.append(current)
-    if options.robust_final:
+    if options.robust_final and current.robust:
+        say("final estimate: the last refit's, already under the robust loss over windows")
+    elif options.robust_final:
         say("final estimate: refitting under the robust loss over windows")
         with phases("final robust estimate"):
             robust, keep = _robust(predictor, current, options, iterations)

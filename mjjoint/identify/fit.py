@@ -105,6 +105,7 @@ class FitResult:
     coarse_iterations: int = 0  # of ``iterations``, those on the window subset (COARSE_SHARE)
     on_bound: tuple[str, ...] = ()  # fitted parameters on a bound (intervals.near_bound): stand-ins
     starts: int = 1  # fits run from different starting points (``restarts``), the best kept
+    robust: bool = False  # fitted under the robust loss over windows (``fit(robust=True)``)
     # Set on a fit stopped after its subset phase (``fit(subset_only=True)``): where ``finish``
     # goes on. Such a result holds the held-out cost and NRMSE only (train: NaN, {}).
     partial: "_Partial | None" = field(default=None, repr=False, compare=False)
@@ -115,7 +116,7 @@ class FitResult:
                 "intervals_95": {k: list(v) for k, v in self.intervals.items()}, "warnings": self.warnings,
                 "iterations": self.iterations, "coarse_iterations": self.coarse_iterations,
                 "rollouts": self.rollouts, "seconds": self.seconds, "on_bound": list(self.on_bound),
-                "starts": self.starts}
+                "starts": self.starts, "robust": self.robust}
 
 
 def residual_matrix(pred_fn, structure: Structure, names, windows, predictor: Predictor, seen: dict | None = None,
@@ -433,7 +434,7 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
     ctr, cte, ntr, nte = evaluate(predictor, best, obj.prediction(x) if same else None)
     return FitResult(best, ctr, cte, ntr, nte, spans, warnings, iterations=done,
                      rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start,
-                     coarse_iterations=coarse_done,
+                     coarse_iterations=coarse_done, robust=st.robust,
                      on_bound=tuple(n for n, b in zip(names, near_bound(x, lo, hi)) if b))
 
 
