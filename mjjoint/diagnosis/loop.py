@@ -554,13 +554,16 @@ def _robust(predictor: Predictor, result: FitResult, options: DiagnoseOptions, p
     return robust, robust.cost_test < result.cost_test
 
 
-# Two-stage screening (``_screen``): every candidate is fitted on the coarse subset of the
-# training windows (the first LM phase of every fit) and scored on the held-out windows. The
-# best one goes on over all training windows, and so do the others that predict better than the
-# model itself fitted the same way (the null) by at least CONTINUE_SHARE of what the best gains
-# on it, at most CONTINUE_MAX in all. Finished, a screen is the whole fit's result bit for bit
-# (``identify.fit.finish``), so the acceptance tests see what a full screen gives; the
-# candidates left on the subset had no chance to be named or to tie with the one that is.
+# Two-stage screening (``_screen``): every candidate is fitted on a seeded SCREEN_SHARE of the
+# training windows (the first LM phase of a fit, ``identify.fit``, on half the share a whole
+# fit's takes: this stage only ranks candidates against the null fitted on the same windows) and
+# scored on the held-out windows. The best one goes on over all training windows, and so do the
+# others that predict better than the model itself fitted the same way (the null) by at least
+# CONTINUE_SHARE of what the best gains on it, at most CONTINUE_MAX in all. Finished
+# (``identify.fit.finish``), a screen is a whole fit whose first phase ran on that subset, so
+# the acceptance tests see what a full screen gives; the candidates left on the subset had no
+# chance to be named or to tie with the one that is.
+SCREEN_SHARE = 0.125
 CONTINUE_SHARE = 0.5
 CONTINUE_MAX = 3
 
@@ -594,7 +597,8 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         return ref, {}, {}
     base_names = None if free_all else [p.name for p in base_params(ref.structure.nominal)]
     with clock.phases("screens, subset"):
-        null = fit(predictor, ref.structure, base_names, max_iter=options.screen_iter, subset_only=True)
+        null = fit(predictor, ref.structure, base_names, max_iter=options.screen_iter, subset_only=True,
+                   coarse_share=SCREEN_SHARE)
     firsts: list[FitResult] = []
     starts: list[Structure] = []
     for i, (name, values, settings) in enumerate(trials, 1):
@@ -606,11 +610,13 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         trial = trial.with_effect(effect, values, settings)
         freed = None if free_all else screened_params(name, ref.structure)
         with clock.phases("screens, subset"):
-            res = fit(predictor, trial, freed, max_iter=options.screen_iter, subset_only=True)
+            res = fit(predictor, trial, freed, max_iter=options.screen_iter, subset_only=True,
+                      coarse_share=SCREEN_SHARE)
             if not res.cost_test < UNSTABLE_COST:
                 unstable[name] = _instability(trial)
                 say(f"  screened {name}: unstable prediction ({unstable[name]}); again at half the timestep")
-                res = fit(predictor, _halved_step(trial), freed, max_iter=options.screen_iter, subset_only=True)
+                res = fit(predictor, _halved_step(trial), freed, max_iter=options.screen_iter, subset_only=True,
+                          coarse_share=SCREEN_SHARE)
         clock.record(time.perf_counter() - start)
         firsts.append(res)
         starts.append(trial)
