@@ -202,8 +202,10 @@ class Diagnosis:
                 "revisions": [r.as_dict() for r in self.revisions],
                 "stand_in_effects": self.stand_in_effects,
                 "verdict": self.verdict,
-                "budget": {"rollouts_full_length": round(self.rollouts, 1), "seconds": round(self.seconds, 1),
-                           "phases": self.phases}}
+                # Rollouts only: diagnosis.json holds no wall times (run.json does), so that a rerun
+                # gives the same file; the progress line has the seconds per phase.
+                "budget": {"rollouts_full_length": round(self.rollouts, 1),
+                           "phases": {k: {n: v for n, v in p.items() if n != "seconds"} for k, p in self.phases.items()}}}
 
 
 def _bic(cost: float, n: int, p: int) -> float:
