@@ -327,11 +327,13 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     rejected = ""  # why the last round's best candidate was not added, for the verdict
     unresolved: dict[str, float] = {}  # the last round's screens that ended above their reference
     clock = ScreenClock(options.max_rounds, phases)
+    located: tuple = ()  # (structure, where) of the last residual located
     revisions = []  # revise.Revision
     search = options  # less the effects refused as stand-ins
     for k in range(1, options.max_rounds + 1):
         with phases("locate"):
             where = residual_location(predictor, current.structure)
+        located = (current.structure, where)
         clock.round = k
         with phases("noise floor"):
             floor_cost = noise_floor(predictor, current.structure).cost()
@@ -435,7 +437,10 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             else:
                 history.append(current)
     with phases("locate"):
-        final_where = residual_location(predictor, current.structure)
+        # The last round's model, unchanged since (nothing added, the final robust estimate not
+        # kept): its residual is located already.
+        final_where = located[1] if located and located[0] is current.structure else \
+            residual_location(predictor, current.structure)
     say("noise floor: the final model's simulated twin of the recording")
     with phases("noise floor"):
         floor = noise_floor(predictor, current.structure)
