@@ -402,14 +402,21 @@ def diagnosis(case: str, duration: float, sizes: Sizes) -> dict:
         # CPU time of the whole process (all rollout threads), recording and scoring included: on
         # a machine shared with other jobs it moves far less than the wall time.
         cpu = time.process_time()
-        score = run_case(case, CASE_SEED, Path(tmp), duration, sizes.diag_options, progress=lambda m: say(f"    {m}"))
+        lines: list[str] = []
+
+        def progress(msg: str) -> None:
+            lines.append(msg)
+            say(f"    {msg}")
+        score = run_case(case, CASE_SEED, Path(tmp), duration, sizes.diag_options, progress=progress)
         cpu = time.process_time() - cpu
+    # The diagnosis's last line: its rollouts and wall time per phase (diagnosis.clock.Phases).
+    spent = next((m for m in reversed(lines) if m.startswith("spent: ")), "")
     say(f"  {score.rollouts:.0f} full-length rollouts, {score.seconds:.1f} s wall ({cpu:.1f} s CPU); named "
         f"{score.named}, false additions {score.false_additions or 'none'}, {score.signal} NRMSE "
         f"{score.nrmse_before:.3f} -> {score.nrmse_after:.3f}")
     return {"case": case, "seconds_recorded": duration, "rollouts": score.rollouts, "wall_s": score.seconds, "cpu_s": cpu,
             "named": score.named, "false_additions": score.false_additions, "nrmse_before": score.nrmse_before,
-            "nrmse_after": score.nrmse_after}
+            "nrmse_after": score.nrmse_after, "phases": spent.removeprefix("spent: ")}
 
 
 # ---- (e) --------------------------------------------------------------------------------

@@ -278,13 +278,16 @@ def test_locate_reports_the_worst_signal_as_json():
     assert not any(c["significant"] for c in d["signals"]["theta"]["conditions"])
 
 
-def test_null_residuals_do_not_multiply_the_transient_memory():
-    """The noise threshold's permutations are scored a few columns at a time: the peak memory of
-    condition_scores must not grow with their number (with all 20 columns at once it did, by
-    ~1 kB per recorded sample: 0.7 GB for a 10-minute recording)."""
+def test_null_residuals_do_not_multiply_the_transient_memory(monkeypatch):
+    """The noise threshold's permutations are scored a few columns at a time once a batch would
+    hold more than NULL_BATCH_SAMPLES samples: the peak memory of condition_scores must not grow
+    with their number (with all 20 columns at once it did, by ~1 kB per recorded sample: 0.7 GB
+    for a 10-minute recording). The budget is set so that this record is such a long one."""
     import tracemalloc
+    from mjjoint.diagnosis import locate as loc
     ex = experiment(np.random.default_rng(0), duration=10.0)
     r = ex.theta_meas - np.roll(ex.theta_meas, 3)
+    monkeypatch.setattr(loc, "NULL_BATCH_SAMPLES", loc.NULL_BATCH * r.size)
 
     def peak(n_permutations: int) -> int:
         tracemalloc.start()
@@ -294,3 +297,21 @@ def test_null_residuals_do_not_multiply_the_transient_memory():
         return p
 
     assert peak(19) < 1.5 * peak(4)
+
+
+def test_null_batches_do_not_change_the_scores(monkeypatch):
+    """Scoring the nulls in batches of NULL_BATCH columns or all at once gives the same scores,
+    thresholds and parameters: the permutations come from one seeded stream either way."""
+    from mjjoint.diagnosis import locate as loc
+    ex = experiment(np.random.default_rng(1), duration=6.0)
+    r = ex.theta_meas - np.roll(ex.theta_meas, 3)
+
+    def scores(samples: int):
+        monkeypatch.setattr(loc, "NULL_BATCH_SAMPLES", samples)
+        return condition_scores(r, ex.conditions, t=ex.t, measured=ex.theta_meas)
+    wide, narrow = scores(100 * r.size), scores(loc.NULL_BATCH * r.size)
+    assert [s.name for s in wide] == [s.name for s in narrow]
+    for a, b in zip(wide, narrow):
+        assert a.score == pytest.approx(b.score, rel=1e-9, abs=1e-12)
+        assert a.threshold == pytest.approx(b.threshold, rel=1e-9, abs=1e-12)
+        assert a.params == pytest.approx(b.params, rel=1e-9, abs=1e-12)

@@ -62,7 +62,9 @@ def test_a_few_unpredictable_windows_do_not_pull_the_robust_fit(predictor):
         start = Structure.create(BASE, DriveSpec(), 1.0)
         error = {}
         for robust in (False, True):
-            v = fit(predictor, start, max_iter=30, robust=robust).structure.values
+            res = fit(predictor, start, max_iter=30, robust=robust)
+            assert res.robust is robust  # the diagnosis refits no robust estimate a second time
+            v = res.structure.values
             error[robust] = max(abs(v["inertia.motor"] / TRUTH.mass - 1),
                                 abs(v["coulomb_friction.fc"] / FRICTION.fc - 1),
                                 abs(v["viscous_friction.sigma"] / FRICTION.sigma - 1))

@@ -10,7 +10,7 @@ from rerun.chunk import RrdReader
 
 import mjjoint.viz.viewer as viewer
 from mjjoint.cli import main
-from mjjoint.diagnosis.clock import ScreenClock
+from mjjoint.diagnosis.clock import Phases, ScreenClock
 from mjjoint.sim import Simulator
 from mjjoint.viz.rerun_log import log_traces
 
@@ -109,6 +109,37 @@ def test_the_time_left_counts_the_candidates_still_to_screen():
     assert "time left ~4 s this round, ~14 s if all 3 rounds run" in clock.status(2, 4)  # 2 now, 3 + 2 later
     clock.round = 3
     assert "round 3 of 3, candidate 4 of 4; time left ~0 s this round, ~0 s" in clock.status(4, 4)
+
+
+def test_phases_charge_what_runs_inside_each_to_it_alone():
+    """A phase opened inside another is charged to itself only: the phases add up to the whole."""
+    count = [0.0]
+    phases = Phases(lambda: count[0])
+    with phases("outer"):
+        count[0] += 2
+        with phases("inner"):
+            count[0] += 5
+        count[0] += 1
+    with phases("inner"):
+        count[0] += 3
+    spent = phases.as_dict()
+    assert spent["outer"]["rollouts"] == 3 and spent["outer"]["count"] == 1
+    assert spent["inner"]["rollouts"] == 8 and spent["inner"]["count"] == 2
+    assert "inner 8 rollouts" in phases.line() and "(2x)" in phases.line()
+
+
+def test_a_diagnosis_says_where_its_rollouts_went(diagnosed):
+    """Every rollout of a diagnosis is charged to one phase (diagnosis.json, ``budget.phases``, and
+    the last progress line); a final robust estimate is fitted only where the current one is not."""
+    import json
+    out, lines = diagnosed
+    budget = json.loads((out / "diagnosis.json").read_text())["budget"]
+    phases = budget["phases"]
+    assert {"base fit", "locate", "screens, subset"} <= set(phases)
+    assert sum(p["rollouts"] for p in phases.values()) == pytest.approx(budget["rollouts_full_length"], abs=0.1 * len(phases))
+    assert any(line.split("] ", 1)[-1].startswith("spent: base fit ") for line in lines)
+    skipped = any("already under the robust loss" in line for line in lines)
+    assert skipped != ("final robust estimate" in phases)
 
 
 @pytest.fixture

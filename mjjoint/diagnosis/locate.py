@@ -52,7 +52,12 @@ RESONANCE_PEAK_RATIO = 2.0  # Welch scatter of a few segments reaches ~2x the tr
 MAX_LAG_S = 0.050           # [s]: larger shifts are timing faults, not missing physics
 NULL_SIGMAS = 4.0
 NULL_BLOCK_S = 0.2          # [s]: residual correlation shorter than this is treated as noise
-NULL_BATCH = 5              # columns (residual + nulls) scored at once: bounds the transient memory
+# Columns (residual + nulls) scored at once: NULL_BATCH, or as many more as hold NULL_BATCH_SAMPLES
+# samples in all. The lag and resonance statistics hold several times a column per column, so
+# this bounds the transient memory at a 10-minute 1 kHz record's batch of NULL_BATCH; a shorter
+# record is scored in fewer, wider batches (each condition's regressors are built once a batch).
+NULL_BATCH = 5
+NULL_BATCH_SAMPLES = NULL_BATCH * 600_000
 WINDOW_LEVEL = 0.25         # a window spans the stretch where the envelope stays above this x peak
 
 
@@ -456,9 +461,10 @@ def condition_scores(
     block = 1 if dt is None else max(1, round(NULL_BLOCK_S / dt))
     permute = {"block": lambda: _block_permutation(r0, block, rng), "sample": lambda: rng.permutation(r0)}
     conds = _conditions(conditions, dt, measured)
+    per_batch = max(NULL_BATCH, NULL_BATCH_SAMPLES // r.size)
     values: dict[str, list[np.ndarray]] = {c.name: [] for c in conds}
     found: dict[str, dict[str, float]] = {}
-    # All conditions of one null kind see the same null residuals, made NULL_BATCH columns at a
+    # All conditions of one null kind see the same null residuals, made ``per_batch`` columns at a
     # time (block ones first, as one stream of the seeded generator): the lag and resonance
     # statistics hold several times a column's size per column, which for all columns at once
     # grew with the record by ~1 kB per sample.
@@ -466,7 +472,7 @@ def condition_scores(
         todo = n_permutations
         first = True
         while first or todo > 0:
-            batch = [permute[kind]() for _ in range(min(todo, NULL_BATCH - first))]
+            batch = [permute[kind]() for _ in range(min(todo, per_batch - first))]
             todo -= len(batch)
             R = np.column_stack(([r0] if first else []) + batch)
             for cond in (c for c in conds if c.null == kind):

@@ -23,7 +23,9 @@ Each round:
    round starts;
 5. when no candidate passes, the final structure's parameters are estimated once more under the
    robust loss over windows (``identify.fit``, ``robust=True``; ``DiagnoseOptions.robust_final``),
-   kept only if that lowers the held-out cost.
+   kept only if that lowers the held-out cost; unless they already are such an estimate (the
+   last addition's or revision's robust refit, kept, and nothing refitted since): that fit
+   would start at its own optimum.
 The base fit and every screen are least squares: while a structure is being searched, the
 windows it predicts worst are where missing physics shows, and a robust fit would discount them
 as outliers (20 s dynamic_friction case, robust fits throughout: 2SEP still lowers the held-out
@@ -85,10 +87,10 @@ from scipy.stats import wilcoxon
 
 from ..assets.stability import check_model_stability
 from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, plant_effects
-from ..identify.fit import FitResult, finish, fit, window_costs
+from ..identify.fit import COARSE_SHARE, FitResult, finish, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
-from .clock import ScreenClock
+from .clock import Phases, ScreenClock
 from .features import operating_conditions, reversal_proximity
 from .floor import EXPLAINED_RATIO, Floor, noise_floor
 from .locate import REVERSAL_WINDOW_S, locate, located_conditions
@@ -165,6 +167,7 @@ class Diagnosis:
     unstable: dict[str, str] = field(default_factory=dict)    # screened candidate -> why unstable
     unresolved: dict[str, float] = field(default_factory=dict)  # candidate -> its screen's held-out cost / the reference's
     revisions: list = field(default_factory=list)  # diagnosis.revise.Revision: swaps, removals, stand-ins refused
+    phases: dict = field(default_factory=dict)  # where the rollouts and time went (``clock.Phases.as_dict``)
 
     @property
     def stand_in_effects(self) -> dict[str, str]:
@@ -199,7 +202,10 @@ class Diagnosis:
                 "revisions": [r.as_dict() for r in self.revisions],
                 "stand_in_effects": self.stand_in_effects,
                 "verdict": self.verdict,
-                "budget": {"rollouts_full_length": round(self.rollouts, 1)}}
+                # Rollouts only: diagnosis.json holds no wall times (run.json does), so that a rerun
+                # gives the same file; the progress line has the seconds per phase.
+                "budget": {"rollouts_full_length": round(self.rollouts, 1),
+                           "phases": {k: {n: v for n, v in p.items() if n != "seconds"} for k, p in self.phases.items()}}}
 
 
 def _bic(cost: float, n: int, p: int) -> float:
@@ -311,24 +317,31 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     roll0 = predictor.rollouts
     say(f"fitting the base model ({', '.join(base.effects) or 'minimal'})")
     iterations = lambda i, c: say(f"    iteration {i}: cost {c:.4g}")  # noqa: E731
-    current = fit(predictor, base, max_iter=options.fit_iter, progress=iterations)
+    phases = Phases(lambda: predictor.rollouts)
+    with phases("base fit"):
+        current = fit(predictor, base, max_iter=options.fit_iter, progress=iterations)
     initial = current
     history = [current]
     steps: list[Step] = []
     unstable: dict[str, str] = {}
     rejected = ""  # why the last round's best candidate was not added, for the verdict
     unresolved: dict[str, float] = {}  # the last round's screens that ended above their reference
-    clock = ScreenClock(options.max_rounds)
+    clock = ScreenClock(options.max_rounds, phases)
+    located: tuple = ()  # (structure, where) of the last residual located
     revisions = []  # revise.Revision
     search = options  # less the effects refused as stand-ins
     for k in range(1, options.max_rounds + 1):
-        where = residual_location(predictor, current.structure)
+        with phases("locate"):
+            where = residual_location(predictor, current.structure)
+        located = (current.structure, where)
         clock.round = k
-        floor_cost = noise_floor(predictor, current.structure).cost()
+        with phases("noise floor"):
+            floor_cost = noise_floor(predictor, current.structure).cost()
         ref, screened, rest = _screen(predictor, current, where, search, say, clock, unstable)
         if not screened:
             break
-        choice, screen = _decide(predictor, ref, screened, options, floor_cost), "stand-ins held"
+        with phases("acceptance tests"):
+            choice, screen = _decide(predictor, ref, screened, options, floor_cost), "stand-ins held"
         if choice.only_inconsistent and options.free_all:
             say(f"  best candidate {choice.best} fails only the rank test ({choice.failed[0]}); screening "
                 "again with every parameter free, from the model refitted")
@@ -338,7 +351,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 initial = initial if steps else ref
             # A second look at the same question: each look at half the level keeps the pair at
             # max_p (Bonferroni), so the escalation cannot raise the false-addition rate.
-            choice, screen = _decide(predictor, ref, screened, options, floor_cost, options.max_p / 2), "all free"
+            with phases("acceptance tests"):
+                choice, screen = _decide(predictor, ref, screened, options, floor_cost, options.max_p / 2), "all free"
         generic = (generic_candidates(ref.structure, where, refused(revisions)) if choice.failed and options.generic
                    else ())
         if generic:
@@ -346,7 +360,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 f"points to ({', '.join(generic)})")
             g_ref, g_screened, g_rest = _screen(predictor, current, where,
                                                 dataclasses.replace(options, candidates=generic), say, clock, unstable)
-            g_choice = _decide(predictor, g_ref, g_screened, options, floor_cost)
+            with phases("acceptance tests"):
+                g_choice = _decide(predictor, g_ref, g_screened, options, floor_cost)
             if not g_choice.failed:
                 choice, ref, screened, rest, screen = g_choice, g_ref, g_screened, g_rest, "generic form"
         best, cand, gain = choice.best, choice.cand, choice.gain
@@ -361,13 +376,15 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         alternatives, consistency = [a.replace(BUNDLE, ' + ') for a in choice.alternatives], choice.consistency
         tested_on, p_value = consistency["windows"], consistency["p"]
         say(f"adding {best} (held-out cost -{100 * gain:.1f} %, paired p = {p_value:.3g} on {tested_on}), refitting")
-        refit = fit(predictor, cand.structure, max_iter=options.fit_iter, progress=iterations)
+        with phases("refit after addition, least squares"):
+            refit = fit(predictor, cand.structure, max_iter=options.fit_iter, progress=iterations)
         if refit.cost_test > cand.cost_test:
             refit = cand  # keep the screened fit if the full refit wandered off on held-out data
         if options.robust_refit:
             # Least squares can stall in a local minimum with the new term (a play's dead zone);
             # the next round would then name a stand-in for the rest (step 4).
-            robust, keep = _robust(predictor, refit, options, iterations)
+            with phases("refit after addition, robust"):
+                robust, keep = _robust(predictor, refit, options, iterations)
             if keep:
                 say(f"  robust refit: held-out cost {robust.cost_test:.4g} against least squares' "
                     f"{refit.cost_test:.4g}: kept")
@@ -383,7 +400,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         unresolved = {}  # screened against the model before this addition
         if options.revise:
             from .revise import revise, stand_in  # revise builds on this module
-            refusal, freer = stand_in(predictor, current, refit, step, steps, options, floor_cost, say)
+            with phases("stand-in guard"):
+                refusal, freer = stand_in(predictor, current, refit, step, steps, options, floor_cost, say)
             if refusal is not None:
                 if freer is not None and freer.cost_test < current.cost_test:  # the same structure, fitted further
                     current = history[-1] = freer
@@ -397,14 +415,18 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         current = refit
         history.append(current)
         if options.revise:
-            current, steps, done = revise(predictor, current, steps, where, search, floor_cost, say,
-                                          refused(revisions))
+            with phases("revision"):
+                current, steps, done = revise(predictor, current, steps, where, search, floor_cost, say,
+                                              refused(revisions))
             revisions += done
             if done:
                 history.append(current)
-    if options.robust_final:
+    if options.robust_final and current.robust:
+        say("final estimate: the last refit's, already under the robust loss over windows")
+    elif options.robust_final:
         say("final estimate: refitting under the robust loss over windows")
-        robust, keep = _robust(predictor, current, options, iterations)
+        with phases("final robust estimate"):
+            robust, keep = _robust(predictor, current, options, iterations)
         # ``current`` is least squares' estimate, or the last addition's robust refit (step 4).
         say(f"robust estimate: held-out cost {robust.cost_test:.4g} against the current estimate's "
             f"{current.cost_test:.4g}: {'kept' if keep else 'not kept'}")
@@ -414,9 +436,14 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 history[-1] = current
             else:
                 history.append(current)
-    final_where = residual_location(predictor, current.structure)
+    with phases("locate"):
+        # The last round's model, unchanged since (nothing added, the final robust estimate not
+        # kept): its residual is located already.
+        final_where = located[1] if located and located[0] is current.structure else \
+            residual_location(predictor, current.structure)
     say("noise floor: the final model's simulated twin of the recording")
-    floor = noise_floor(predictor, current.structure)
+    with phases("noise floor"):
+        floor = noise_floor(predictor, current.structure)
     explained = floor.explained(current.nrmse_test)
     if not explained:
         # An interval is the spread of estimates a right model would give; a model that misses
@@ -426,9 +453,10 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     if explained:
         unresolved = {}
     verdict = _verdict(steps, initial, current, floor, explained, final_where, rejected, bounds, unresolved, revisions)
+    say(f"spent: {phases.line()}")
     return Diagnosis(steps, initial, current, final_where, verdict,
                      predictor.rollouts - roll0, time.perf_counter() - t_start, history,
-                     floor, explained, bounds, unstable, unresolved, revisions)
+                     floor, explained, bounds, unstable, unresolved, revisions, phases.as_dict())
 
 
 def refused(revisions) -> tuple[str, ...]:
@@ -533,13 +561,18 @@ def _robust(predictor: Predictor, result: FitResult, options: DiagnoseOptions, p
     return robust, robust.cost_test < result.cost_test
 
 
-# Two-stage screening (``_screen``): every candidate is fitted on the coarse subset of the
-# training windows (the first LM phase of every fit) and scored on the held-out windows. The
-# best one goes on over all training windows, and so do the others that predict better than the
-# model itself fitted the same way (the null) by at least CONTINUE_SHARE of what the best gains
-# on it, at most CONTINUE_MAX in all. Finished, a screen is the whole fit's result bit for bit
-# (``identify.fit.finish``), so the acceptance tests see what a full screen gives; the
-# candidates left on the subset had no chance to be named or to tie with the one that is.
+# Two-stage screening (``_screen``): every candidate is fitted on a seeded SCREEN_SHARE of the
+# training windows (the first LM phase of a fit, ``identify.fit``) and scored on the held-out
+# windows. The best one goes on over all training windows, and so do the others that predict
+# better than the model itself fitted the same way (the null) by at least CONTINUE_SHARE of what
+# the best gains on it, at most CONTINUE_MAX in all. Finished, a screen is the whole fit's result
+# bit for bit (``identify.fit.finish``), so the acceptance tests see what a full screen gives;
+# the candidates left on the subset had no chance to be named or to tie with the one that is.
+# SCREEN_SHARE is the whole fit's first-phase share: an eighth of the windows cut the 20 s
+# backlash case's subset screens from 224 to 129 rollouts, but on seed 3 of that case it
+# finished a torque ripple the quarter leaves on the subset, which the all-free second screen
+# then named beside the backlash (docs/benchmark.md, (d)).
+SCREEN_SHARE = COARSE_SHARE
 CONTINUE_SHARE = 0.5
 CONTINUE_MAX = 3
 
@@ -562,7 +595,8 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     """
     ref = current
     if free_all:
-        ref = fit(predictor, current.structure, max_iter=options.fit_iter)
+        with clock.phases("screens, reference refitted"):
+            ref = fit(predictor, current.structure, max_iter=options.fit_iter)
         say(f"  reference, the model refitted: held-out cost {current.cost_test:.4g} -> {ref.cost_test:.4g}")
     trials = [(name, values, settings) for name in candidates_for(ref.structure, options.candidates)
               for values, settings in _candidate_variants(parts(name)[-1], where)]
@@ -571,7 +605,9 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     if not trials:
         return ref, {}, {}
     base_names = None if free_all else [p.name for p in base_params(ref.structure.nominal)]
-    null = fit(predictor, ref.structure, base_names, max_iter=options.screen_iter, subset_only=True)
+    with clock.phases("screens, subset"):
+        null = fit(predictor, ref.structure, base_names, max_iter=options.screen_iter, subset_only=True,
+                   coarse_share=SCREEN_SHARE)
     firsts: list[FitResult] = []
     starts: list[Structure] = []
     for i, (name, values, settings) in enumerate(trials, 1):
@@ -582,11 +618,14 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
             trial = trial.with_effect(e)
         trial = trial.with_effect(effect, values, settings)
         freed = None if free_all else screened_params(name, ref.structure)
-        res = fit(predictor, trial, freed, max_iter=options.screen_iter, subset_only=True)
-        if not res.cost_test < UNSTABLE_COST:
-            unstable[name] = _instability(trial)
-            say(f"  screened {name}: unstable prediction ({unstable[name]}); again at half the timestep")
-            res = fit(predictor, _halved_step(trial), freed, max_iter=options.screen_iter, subset_only=True)
+        with clock.phases("screens, subset"):
+            res = fit(predictor, trial, freed, max_iter=options.screen_iter, subset_only=True,
+                      coarse_share=SCREEN_SHARE)
+            if not res.cost_test < UNSTABLE_COST:
+                unstable[name] = _instability(trial)
+                say(f"  screened {name}: unstable prediction ({unstable[name]}); again at half the timestep")
+                res = fit(predictor, _halved_step(trial), freed, max_iter=options.screen_iter, subset_only=True,
+                          coarse_share=SCREEN_SHARE)
         clock.record(time.perf_counter() - start)
         firsts.append(res)
         starts.append(trial)
@@ -597,11 +636,12 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     screened: dict[str, tuple[float, FitResult]] = {}
     for i in go_on:
         name, _, settings = trials[i]
-        res = finish(predictor, firsts[i])
-        if not res.cost_test < UNSTABLE_COST and name not in unstable:
-            unstable[name] = _instability(starts[i])
-            res = fit(predictor, _halved_step(starts[i]), None if free_all else
-                      screened_params(name, ref.structure), max_iter=options.screen_iter)
+        with clock.phases("screens, finish"):
+            res = finish(predictor, firsts[i])
+            if not res.cost_test < UNSTABLE_COST and name not in unstable:
+                unstable[name] = _instability(starts[i])
+                res = fit(predictor, _halved_step(starts[i]), None if free_all else
+                          screened_params(name, ref.structure), max_iter=options.screen_iter)
         if name not in screened or res.cost_test < screened[name][0]:
             screened[name] = (res.cost_test, res)
         label = f"{name} {settings}" if settings else name

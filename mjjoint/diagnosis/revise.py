@@ -13,7 +13,10 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
 - **Swap**: each named effect is replaced by each of its rivals (``rivals``: the effects acting
   at the same site under a shared residual condition, and the ones the step found
   indistinguishable), the rest refitted; the swap is kept when the swapped model passes the
-  acceptance rule against the current one. The incumbent keeps its place on a tie.
+  acceptance rule against the current one. The incumbent keeps its place on a tie. A swap is
+  fitted in a screen's two stages (``loop._screen``): on the screens' subset of the windows
+  first, finished on all of them only where its subset cost, scaled as a screen's is, could
+  pass the relative gain.
 - **Removal** (backward elimination): each named effect is tested as if it were added now to the
   model without it; one that no longer passes, given the effects named after it, is removed.
 
@@ -26,12 +29,12 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Callable
 
-from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, check_effects, plant_effects
-from ..identify.fit import FitResult, fit
+from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, check_effects, plant_effects
+from ..identify.fit import FitResult, finish, fit
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
-from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust, acceptance, parts,
-                   screened_params)
+from .loop import (BUNDLE, SCREEN_SHARE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust, acceptance,
+                   parts, screened_params)
 
 
 @dataclass
@@ -109,8 +112,9 @@ def rivals(step: Step, structure: Structure, allowed=None, excluded=()) -> list[
 
 def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: dict, options: DiagnoseOptions
                   ) -> FitResult:
-    """``key`` added to ``structure`` and fitted as a screen is (``loop.screened_params``), from
-    each variant the evidence suggests; the lowest held-out cost."""
+    """``key`` added to ``structure`` and fitted as a screen's first stage is (``loop.screened_params``
+    on the SCREEN_SHARE subset, ``loop._screen``), from each variant the evidence suggests; the
+    lowest held-out cost, to be finished (``identify.fit.finish``)."""
     best = None
     *needed, effect = parts(key)
     for values, settings in _candidate_variants(effect, where):
@@ -118,7 +122,8 @@ def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: d
         for e in needed:
             trial = trial.with_effect(e)
         trial = trial.with_effect(effect, values, settings)
-        res = fit(predictor, trial, screened_params(key, structure), max_iter=options.screen_iter)
+        res = fit(predictor, trial, screened_params(key, structure), max_iter=options.screen_iter, subset_only=True,
+                  coarse_share=SCREEN_SHARE)
         if best is None or res.cost_test < best.cost_test:
             best = res
     return best
@@ -202,13 +207,24 @@ def _removal(predictor, current, steps, options, floor_cost, say):
 def _swap(predictor, current, steps, where, options, floor_cost, say, excluded):
     """The best swap of a named step for a rival that passes the acceptance rule against the
     current model; None if none does."""
-    best = None
+    best = null = None
     for i, step in enumerate(steps):
         if not removable(current.structure, [step.effect]):
             continue
         reduced = without(current.structure, [step.effect])
         for key in rivals(step, current.structure, options.candidates, excluded):
-            trial = _fit_variants(predictor, reduced, key, where, options)
+            first = _fit_variants(predictor, reduced, key, where, options)
+            if null is None:  # the current model fitted on the same subset, as a screen's null is
+                null = fit(predictor, current.structure, [p.name for p in base_params(current.structure.nominal)],
+                           max_iter=options.screen_iter, subset_only=True, coarse_share=SCREEN_SHARE)
+            # As a screen left on the subset is scored (``loop._screen``): the current model's
+            # held-out cost scaled by the swap's subset cost over the null's.
+            guess = current.cost_test * first.cost_test / null.cost_test if null.cost_test > 0 else first.cost_test
+            if not guess < current.cost_test * (1.0 - options.min_gain):
+                say(f"  swap {step.effect} -> {key} on a subset of the windows: held-out cost "
+                    f"{current.cost_test:.4g} -> ~{guess:.4g}")
+                continue  # cannot pass the relative gain, not worth finishing
+            trial = finish(predictor, first)
             say(f"  swap {step.effect} -> {key}: held-out cost {current.cost_test:.4g} -> {trial.cost_test:.4g}")
             if not trial.cost_test < current.cost_test * (1.0 - options.min_gain):
                 continue  # cannot pass the relative gain, not worth the full refit

@@ -105,6 +105,7 @@ class FitResult:
     coarse_iterations: int = 0  # of ``iterations``, those on the window subset (COARSE_SHARE)
     on_bound: tuple[str, ...] = ()  # fitted parameters on a bound (intervals.near_bound): stand-ins
     starts: int = 1  # fits run from different starting points (``restarts``), the best kept
+    robust: bool = False  # fitted under the robust loss over windows (``fit(robust=True)``)
     # Set on a fit stopped after its subset phase (``fit(subset_only=True)``): where ``finish``
     # goes on. Such a result holds the held-out cost and NRMSE only (train: NaN, {}).
     partial: "_Partial | None" = field(default=None, repr=False, compare=False)
@@ -115,7 +116,7 @@ class FitResult:
                 "intervals_95": {k: list(v) for k, v in self.intervals.items()}, "warnings": self.warnings,
                 "iterations": self.iterations, "coarse_iterations": self.coarse_iterations,
                 "rollouts": self.rollouts, "seconds": self.seconds, "on_bound": list(self.on_bound),
-                "starts": self.starts}
+                "starts": self.starts, "robust": self.robust}
 
 
 def residual_matrix(pred_fn, structure: Structure, names, windows, predictor: Predictor, seen: dict | None = None,
@@ -291,7 +292,7 @@ def _lm(obj: Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndar
 
 def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int = 25,
         windows: np.ndarray | None = None, progress=None, robust: bool = False, restarts: int = 0,
-        subset_only: bool = False) -> FitResult:
+        subset_only: bool = False, coarse_share: float | None = None) -> FitResult:
     """Least-squares fit of the parameters ``names`` (default: all) of ``structure``; with
     ``robust``, under the Cauchy loss over windows (module doc).
 
@@ -303,18 +304,20 @@ def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int
     With ``subset_only``, the fit stops after its first LM phase (the seeded COARSE_SHARE of
     the windows) and returns that point scored on the held-out windows only (``partial`` set);
     ``finish`` takes it on to exactly the result the whole fit gives. Where the windows are too
-    few for two phases, the whole fit is run.
+    few for two phases, the whole fit is run. ``coarse_share``: the share of the windows the
+    first phase runs on (default COARSE_SHARE; at least COARSE_MIN of them).
     """
     if subset_only:
         if restarts:
             raise ValueError("fit: subset_only and restarts cannot be combined")
-        return _fit_once(predictor, structure, names, max_iter, windows, progress, robust, subset_only=True)
-    result = _fit_once(predictor, structure, names, max_iter, windows, progress, robust)
+        return _fit_once(predictor, structure, names, max_iter, windows, progress, robust, subset_only=True,
+                         coarse_share=coarse_share)
+    result = _fit_once(predictor, structure, names, max_iter, windows, progress, robust, coarse_share=coarse_share)
     if restarts <= 0 or not (result.on_bound or result.cost_train > FAR_ABOVE * predictor.noise_floor):
         return result
     tried = [result]
     for start in restart_points(structure, names, restarts, predictor.design.seed):
-        tried.append(_fit_once(predictor, start, names, max_iter, windows, progress, robust))
+        tried.append(_fit_once(predictor, start, names, max_iter, windows, progress, robust, coarse_share=coarse_share))
     best = min(tried, key=lambda r: r.cost_train)
     best.starts = len(tried)
     best.seconds = sum(r.seconds for r in tried)
@@ -358,10 +361,10 @@ class _Partial:
 
 
 def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, windows, progress,
-              robust: bool, subset_only: bool = False) -> FitResult:
+              robust: bool, subset_only: bool = False, coarse_share: float | None = None) -> FitResult:
     """One fit from the structure's values (``fit``).
 
-    Two LM phases: on a seeded quarter of the windows until the step is within COARSE_SE of
+    Two LM phases: on a seeded ``coarse_share`` of the windows until the step is within COARSE_SE of
     that subset's standard errors, then on all windows until it is within STEP_SE of theirs
     (each LM run at most ``max_iter`` iterations; the second repeated while the loss scale
     falls, SCALE_ROUNDS). ``progress(iteration, cost)`` gets the mean loss per residual over
@@ -376,7 +379,7 @@ def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, 
     lo, hi = structure.bounds(names)
     x = np.clip(structure.vector(names), lo, hi)
     done = 0
-    subset = coarse_windows(windows, predictor.design.seed)
+    subset = coarse_windows(windows, predictor.design.seed, coarse_share)
     if subset is not None:
         scale = _scale_at(predictor, structure, names, robust, x, subset)
         coarse = Objective(predictor, structure, names, subset, lo, hi, COARSE_SE, scale)
@@ -433,7 +436,7 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
     ctr, cte, ntr, nte = evaluate(predictor, best, obj.prediction(x) if same else None)
     return FitResult(best, ctr, cte, ntr, nte, spans, warnings, iterations=done,
                      rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start,
-                     coarse_iterations=coarse_done,
+                     coarse_iterations=coarse_done, robust=st.robust,
                      on_bound=tuple(n for n, b in zip(names, near_bound(x, lo, hi)) if b))
 
 
@@ -445,9 +448,11 @@ def _reporter(progress, done: int):
     return on_iter
 
 
-def coarse_windows(windows: np.ndarray, seed: int) -> np.ndarray | None:
-    """The seeded share of the windows the first LM phase runs on (None: too few for two phases)."""
-    n = max(COARSE_MIN, int(round(COARSE_SHARE * len(windows))))
-    if COARSE_SHARE <= 0 or 2 * n > len(windows):
+def coarse_windows(windows: np.ndarray, seed: int, share: float | None = None) -> np.ndarray | None:
+    """The seeded ``share`` (default COARSE_SHARE) of the windows the first LM phase runs on, at
+    least COARSE_MIN (None: too few for two phases)."""
+    share = COARSE_SHARE if share is None else share
+    n = max(COARSE_MIN, int(round(share * len(windows))))
+    if share <= 0 or 2 * n > len(windows):
         return None
     return np.sort(np.random.default_rng(seed).choice(windows, n, replace=False))
