@@ -13,8 +13,6 @@ from numba.core.errors import NumbaExperimentalFeatureWarning
 # instead of raising. The parameter dataclasses rule such divisions out up front, and the
 # per-division check with its exception path cost 40 % of the 2SEP state update per step.
 kernel = njit(cache=True, error_model="numpy")
-# A small kernel numba inlines into each caller (a call would cost as much as its body).
-inline_kernel = njit(cache=True, error_model="numpy", inline="always")
 TERMS_ENV = "MJJOINT_TERMS"
 
 # The kernels unroll tuples of the terms' kernels (coupling.kernels), which numba types with its

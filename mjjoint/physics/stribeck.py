@@ -10,7 +10,6 @@ import math
 from dataclasses import dataclass
 
 from ..params import check
-from .decay import decay
 from .jit import kernel
 from .roots import ITERATIONS, newton_in_bracket
 
@@ -38,7 +37,7 @@ def stribeck_level(w: float, fc: float, fs: float, vs: float, shape: float) -> f
     # the common shapes 1 and 2 without pow(): this runs every simulation step
     e = r if shape == 1.0 else (r * r if shape == 2.0 else r ** shape)
     # past e = 40 the Stribeck bump, (Fs - Fc) 4e-18, is below the Coulomb level's last bit
-    return fc + (fs - fc) * decay(e) if e < 40.0 else fc
+    return fc + (fs - fc) * math.exp(-e) if e < 40.0 else fc
 
 
 @kernel
@@ -91,7 +90,7 @@ def static_friction_step(a: float, k: float, hj: float, fc: float, fs: float, vs
         r = abs(w / vs)
         e = r if shape == 1.0 else (r * r if shape == 2.0 else r ** shape)
         # d level / dw on the sliding side: -(Fs - Fc) E shape r^(shape-1) sg / vs
-        dlevel = -(fs - fc) * decay(e) * shape * e / r / vs * sg if r > 0.0 and e < 40.0 else 0.0
+        dlevel = -(fs - fc) * math.exp(-e) * shape * e / r / vs * sg if r > 0.0 and e < 40.0 else 0.0
         w, lo, hi, done = newton_in_bracket(w, g, slope + hj * sg * dlevel, lo, hi)
         if done:
             break
@@ -110,7 +109,7 @@ def static_friction_slope(w: float, fc: float, fs: float, vs: float, shape: floa
     d = smooth_sign(w, v_eps)
     r = abs(w / vs)
     e = r if shape == 1.0 else (r * r if shape == 2.0 else r ** shape)
-    big_e = decay(e) if e < 40.0 else 0.0
+    big_e = math.exp(-e) if e < 40.0 else 0.0
     dd = (1.0 - d * d) / v_eps
     # d E' = -|d| E shape r^(shape-1) / Vs: finite at w = 0 since |d| ~ |w| / v_eps there
     de = abs(d) * big_e * shape * e / r / vs if r > 0.0 else 0.0

@@ -42,7 +42,6 @@ import math
 from dataclasses import dataclass
 
 from ..params import check
-from .decay import decay
 from .jit import kernel
 from .stribeck import smooth_sign, steady_state, stribeck_level  # noqa: F401 (steady_state: public API)
 
@@ -83,20 +82,20 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
     # |q_r| only grows between reversals; past K|q_r| = 40 the increment is below
     # omega e^-40 = 4e-18 omega, under z1's last bit, so the two exp() are skipped (per step).
     if k * abs(qr) < 40.0:
-        z1 = z1 + sg * omega * (decay(k * abs(qr)) - decay(k * abs(qr_new)))
+        z1 = z1 + sg * omega * (math.exp(-k * abs(qr)) - math.exp(-k * abs(qr_new)))
     s, s_mag = lag_target(w, fc, fs, vs, shape, sigma, asym, sigma_asym)
     # Eq. 14 is linear in z2 for frozen w and z1: z2' = d - lam z2, solved exactly over the step.
     # The gain (1 - e^-lam_h) h / lam_h from the one exp; its series where that loses digits, and
     # no exp at all where e^-lam_h is below z2's last bit (fast sliding).
     lam_h = h * b * abs(w) / s_mag
     if lam_h > 40.0:
-        kept, gain = 0.0, h / lam_h
+        decay, gain = 0.0, h / lam_h
     elif lam_h > 1e-4:
-        kept = decay(lam_h)
-        gain = h * (1.0 - kept) / lam_h
+        decay = math.exp(-lam_h)
+        gain = h * (1.0 - decay) / lam_h
     else:
-        kept, gain = 1.0 - lam_h * (1.0 - 0.5 * lam_h), h * (1.0 - lam_h * (0.5 - lam_h / 6.0))
-    z2 = z2 * kept + gain * (s - z1) / s_mag
+        decay, gain = 1.0 - lam_h * (1.0 - 0.5 * lam_h), h * (1.0 - lam_h * (0.5 - lam_h / 6.0))
+    z2 = z2 * decay + gain * (s - z1) / s_mag
     return z1, z2, omega, qr_new, wsign
 
 
