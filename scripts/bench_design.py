@@ -39,7 +39,7 @@ def calibration(results: list[dict]) -> None:
     over the designed draws named correctly (the realised ratio then positive): the median ratio
     predicted / realised, its range, and the share within a factor of 10 either way; and over
     every designed draw, how often the realised ratio reached the prediction (the prediction a
-    conservative figure there)."""
+    lower figure there)."""
     ok = [r for r in results if r.get("correct") and r.get("rehearsed") is not None and r["llr"] > 0]
     designed = [r for r in results if r.get("family") is not None and r.get("rehearsed") is not None]
     for name, key in (("D held-out", "D_heldout"), ("rehearsed (truth's side)", "rehearsed_truth_side"),

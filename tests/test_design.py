@@ -192,8 +192,8 @@ def test_design_writes_the_experiment_the_simulator_reads_and_never_one_past_a_l
     with out.staged() as folder:
         data = write_design(folder, d, {"command": "design"})
     assert data["discrimination_nats"] == d.best.score > 0
-    # The decision compares the held-out windows only; not rehearsed: no conservative figure.
-    assert 0 < data["discrimination_heldout_nats"] < d.best.score and data["conservative_nats"] is None
+    # The decision compares the held-out windows only; not rehearsed: no rehearsed figure.
+    assert 0 < data["discrimination_heldout_nats"] < d.best.score and data["rehearsed_ratio_nats"] is None
     exp = FromFile(out.path / "experiment.csv")
     assert np.array_equal(exp.sample(limits.rate, limits.duration), d.best.u)
     marks = separated(d)

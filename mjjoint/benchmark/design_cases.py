@@ -130,7 +130,7 @@ def run_case(case: DesignCase, limits: Limits, options: SearchOptions, max_iter:
             "chirp_usage": d.reference.usage, "chirp_feasible": d.reference.feasible, "usage": d.best.usage,
             "truth_violations": violations(truth_run, limits, "truth"), "truth_usage": usage(truth_run, limits),
             "loop": d.loop is not None,
-            "rehearsed": d.conservative,
+            "rehearsed": d.rehearsed_ratio,
             # the rehearsal whose recording came from the rival with the truth's effect
             "rehearsed_truth_side": None if d.best.rehearsal is None else
             d.best.rehearsal.evidence[[r.effect for r in rivals].index(case.truth_effect)],

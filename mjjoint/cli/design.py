@@ -218,8 +218,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"designed: {d.best.family}, {limits.duration:g} s; expected log-likelihood ratio for the rivals as "
           f"fitted {d.best.score:.3g} nats (default chirp {d.reference.score:.3g}), "
           f"{d.heldout_discrimination:.3g} over the held-out windows the decision compares")
-    if d.conservative is not None:
-        print(f"conservative figure: {d.conservative:.3g} nats (the smaller rehearsed decision's ratio; how often the "
+    if d.rehearsed_ratio is not None:
+        print(f"rehearsed: {d.rehearsed_ratio:.3g} nats (the smaller rehearsed decision's ratio; not a bound: how often the "
               f"realised ratio reaches each figure: docs/design-experiments.md, Calibration)")
     if d.unbeaten:
         print(f"the design is no better than the default chirp: {d.unbeaten}")

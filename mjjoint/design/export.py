@@ -40,7 +40,7 @@ def summary(d: Design) -> dict:
                            **({} if d.loop is None else {"controller": d.loop.describe()})},
             "discrimination_nats": best.score,   # for the rivals as fitted, every window
             "discrimination_heldout_nats": d.heldout_discrimination,
-            "conservative_nats": d.conservative,
+            "rehearsed_ratio_nats": d.rehearsed_ratio,
             "rehearsed": [{"family": c.family, "point": list(c.point), "discrimination_nats": c.score,
                            **c.rehearsal.as_dict()} for c in d.rehearsed],
             "default_chirp": {"discrimination_nats": ref.score, "limit_usage": ref.usage,
@@ -151,8 +151,9 @@ def page(data: dict, run: dict) -> str:
             f"<p>Expected log-likelihood ratio between the rivals as fitted: <b>{data['discrimination_nats']:.4g} "
             f"nats</b> (the default chirp of the same length: {data['default_chirp']['discrimination_nats']:.4g}), "
             f"{data['discrimination_heldout_nats']:.4g} over the held-out windows the decision compares"
-            + ("" if data["conservative_nats"] is None else
-               f"; conservative figure (the smaller rehearsed decision's): {data['conservative_nats']:.4g} nats")
+            + ("" if data["rehearsed_ratio_nats"] is None else
+               f"; the smaller rehearsed decision's: {data['rehearsed_ratio_nats']:.4g} nats (not a bound: the "
+               "benchmark's realised ratios reached it in most draws, not all)")
             + ".</p>\n"
             f"<table><tr><th>rival</th><th>largest share of a limit used</th></tr>{rows}</table>\n"
             "<p><img src=\"responses.png\" alt=\"both rivals' predicted responses\" style=\"max-width:100%\"></p>\n"

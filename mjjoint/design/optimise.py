@@ -132,10 +132,11 @@ class Design:
         return self.best.score * float(np.mean(self.best.windowed[0].holdout))
 
     @property
-    def conservative(self) -> float | None:
+    def rehearsed_ratio(self) -> float | None:
         """The smaller of the chosen input's two rehearsed decisions' log-likelihood ratios (None:
-        not rehearsed): the figure the realised ratio reached in most benchmark draws
-        (docs/design-experiments.md, Calibration), where D held-out over- or understates it."""
+        not rehearsed): the figure the realised ratio reached in most benchmark draws, not all
+        (docs/design-experiments.md, Calibration), where D held-out over- or understates it;
+        not a bound."""
         return None if self.best.rehearsal is None else self.best.rehearsal.score
 
     @property
