@@ -188,6 +188,9 @@ def test_design_writes_the_experiment_the_simulator_reads_and_never_one_past_a_l
                                                     families=("slow_reversal",)))
     assert all(not violations(tr, limits, "rival") for tr in d.best.traces)
     assert all(u <= 1.0 for f, p, s, u in d.evaluated if s == d.best.score and f == d.best.family)
+    # one row per input run: the reference chirp's chosen amplitude, scored after it was run, once
+    chirps = [(s, u) for f, p, s, u in d.evaluated if f == "default chirp" and u == d.reference.usage]
+    assert chirps == [(d.reference.score, d.reference.usage)]
     out = OutputDir(tmp_path / "design")
     with out.staged() as folder:
         data = write_design(folder, d, {"command": "design"})

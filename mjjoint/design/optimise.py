@@ -98,6 +98,7 @@ class Candidate:
     floor: dict[str, float] | None = None
     rehearsal: Rehearsal | None = None
     shares: dict[str, float] = field(default_factory=dict)
+    row: int | None = field(default=None, repr=False)  # its row in ``Evaluator.evaluated``, once logged
 
     @property
     def feasible(self) -> bool:
@@ -193,8 +194,18 @@ class Evaluator:
             cand = Candidate(family, tuple(point), excitation, u, None, use, traces, shares=share)
             if score and (use <= 1.0 or score_past_limits):
                 return self.scored(cand)
-        self.evaluated.append((family, cand.point, cand.score, cand.usage))
+        self._log(cand)
         return cand
+
+    def _log(self, cand: Candidate) -> None:
+        """``cand``'s row in ``evaluated``: one per input run, its D filled in where it is
+        scored after it was logged (the reference chirp's chosen amplitude)."""
+        row = (cand.family, cand.point, cand.score, cand.usage)
+        if cand.row is not None:
+            self.evaluated[cand.row] = row
+        else:
+            cand.row = len(self.evaluated)
+            self.evaluated.append(row)
 
     def scored(self, cand: Candidate) -> Candidate:
         """``cand`` with its D, the windowed predictions and the floor it was computed with."""
@@ -202,7 +213,7 @@ class Evaluator:
         cand.floor = self.noise if self.noise is not None else input_floor(self.models, traces, self.window)
         cand.windowed = tuple(windowed(self.models, tr, k, self.window) for k, tr in enumerate(traces))
         cand.score = discrimination(list(cand.windowed), cand.floor, self.limits.signals)
-        self.evaluated.append((cand.family, cand.point, cand.score, cand.usage))
+        self._log(cand)
         return cand
 
     def point(self, family: str, point) -> Candidate:
