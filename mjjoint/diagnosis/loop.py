@@ -87,7 +87,7 @@ from scipy.stats import wilcoxon
 
 from ..assets.stability import check_model_stability
 from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, plant_effects
-from ..identify.fit import COARSE_SHARE, FitResult, finish, fit, window_costs
+from ..identify.fit import FitResult, finish, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .clock import Phases, ScreenClock
@@ -561,18 +561,15 @@ def _robust(predictor: Predictor, result: FitResult, options: DiagnoseOptions, p
     return robust, robust.cost_test < result.cost_test
 
 
-# Two-stage screening (``_screen``): every candidate is fitted on a seeded SCREEN_SHARE of the
+# Two-stage screening (``_screen``): every candidate is fitted on the seeded share of the
 # training windows (the first LM phase of a fit, ``identify.fit``) and scored on the held-out
 # windows. The best one goes on over all training windows, and so do the others that predict
 # better than the model itself fitted the same way (the null) by at least CONTINUE_SHARE of what
 # the best gains on it, at most CONTINUE_MAX in all. Finished, a screen is the whole fit's result
 # bit for bit (``identify.fit.finish``), so the acceptance tests see what a full screen gives;
 # the candidates left on the subset had no chance to be named or to tie with the one that is.
-# SCREEN_SHARE is the whole fit's first-phase share: an eighth of the windows cut the 20 s
-# backlash case's subset screens from 224 to 129 rollouts, but on seed 3 of that case it
-# finished a torque ripple the quarter leaves on the subset, which the all-free second screen
-# then named beside the backlash (docs/benchmark.md, (d)).
-SCREEN_SHARE = COARSE_SHARE
+# A smaller share than the fit's (an eighth) finished and named a false torque ripple beside a
+# backlash (CHANGELOG).
 CONTINUE_SHARE = 0.5
 CONTINUE_MAX = 3
 
@@ -606,8 +603,7 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         return ref, {}, {}
     base_names = None if free_all else [p.name for p in base_params(ref.structure.nominal)]
     with clock.phases("screens, subset"):
-        null = fit(predictor, ref.structure, base_names, max_iter=options.screen_iter, subset_only=True,
-                   coarse_share=SCREEN_SHARE)
+        null = fit(predictor, ref.structure, base_names, max_iter=options.screen_iter, subset_only=True)
     firsts: list[FitResult] = []
     starts: list[Structure] = []
     for i, (name, values, settings) in enumerate(trials, 1):
@@ -619,13 +615,11 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         trial = trial.with_effect(effect, values, settings)
         freed = None if free_all else screened_params(name, ref.structure)
         with clock.phases("screens, subset"):
-            res = fit(predictor, trial, freed, max_iter=options.screen_iter, subset_only=True,
-                      coarse_share=SCREEN_SHARE)
+            res = fit(predictor, trial, freed, max_iter=options.screen_iter, subset_only=True)
             if not res.cost_test < UNSTABLE_COST:
                 unstable[name] = _instability(trial)
                 say(f"  screened {name}: unstable prediction ({unstable[name]}); again at half the timestep")
-                res = fit(predictor, _halved_step(trial), freed, max_iter=options.screen_iter, subset_only=True,
-                          coarse_share=SCREEN_SHARE)
+                res = fit(predictor, _halved_step(trial), freed, max_iter=options.screen_iter, subset_only=True)
         clock.record(time.perf_counter() - start)
         firsts.append(res)
         starts.append(trial)

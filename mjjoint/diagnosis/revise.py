@@ -33,7 +33,7 @@ from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, ch
 from ..identify.fit import FitResult, finish, fit
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
-from .loop import (BUNDLE, SCREEN_SHARE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust, acceptance,
+from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust, acceptance,
                    parts, screened_params)
 
 
@@ -113,7 +113,7 @@ def rivals(step: Step, structure: Structure, allowed=None, excluded=()) -> list[
 def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: dict, options: DiagnoseOptions
                   ) -> FitResult:
     """``key`` added to ``structure`` and fitted as a screen's first stage is (``loop.screened_params``
-    on the SCREEN_SHARE subset, ``loop._screen``), from each variant the evidence suggests; the
+    on the fit's first-phase subset, ``loop._screen``), from each variant the evidence suggests; the
     lowest held-out cost, to be finished (``identify.fit.finish``)."""
     best = None
     *needed, effect = parts(key)
@@ -122,8 +122,7 @@ def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: d
         for e in needed:
             trial = trial.with_effect(e)
         trial = trial.with_effect(effect, values, settings)
-        res = fit(predictor, trial, screened_params(key, structure), max_iter=options.screen_iter, subset_only=True,
-                  coarse_share=SCREEN_SHARE)
+        res = fit(predictor, trial, screened_params(key, structure), max_iter=options.screen_iter, subset_only=True)
         if best is None or res.cost_test < best.cost_test:
             best = res
     return best
@@ -216,7 +215,7 @@ def _swap(predictor, current, steps, where, options, floor_cost, say, excluded):
             first = _fit_variants(predictor, reduced, key, where, options)
             if null is None:  # the current model fitted on the same subset, as a screen's null is
                 null = fit(predictor, current.structure, [p.name for p in base_params(current.structure.nominal)],
-                           max_iter=options.screen_iter, subset_only=True, coarse_share=SCREEN_SHARE)
+                           max_iter=options.screen_iter, subset_only=True)
             # As a screen left on the subset is scored (``loop._screen``): the current model's
             # held-out cost scaled by the swap's subset cost over the null's.
             guess = current.cost_test * first.cost_test / null.cost_test if null.cost_test > 0 else first.cost_test

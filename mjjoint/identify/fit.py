@@ -292,7 +292,7 @@ def _lm(obj: Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndar
 
 def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int = 25,
         windows: np.ndarray | None = None, progress=None, robust: bool = False, restarts: int = 0,
-        subset_only: bool = False, coarse_share: float | None = None) -> FitResult:
+        subset_only: bool = False) -> FitResult:
     """Least-squares fit of the parameters ``names`` (default: all) of ``structure``; with
     ``robust``, under the Cauchy loss over windows (module doc).
 
@@ -304,20 +304,18 @@ def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int
     With ``subset_only``, the fit stops after its first LM phase (the seeded COARSE_SHARE of
     the windows) and returns that point scored on the held-out windows only (``partial`` set);
     ``finish`` takes it on to exactly the result the whole fit gives. Where the windows are too
-    few for two phases, the whole fit is run. ``coarse_share``: the share of the windows the
-    first phase runs on (default COARSE_SHARE; at least COARSE_MIN of them).
+    few for two phases, the whole fit is run.
     """
     if subset_only:
         if restarts:
             raise ValueError("fit: subset_only and restarts cannot be combined")
-        return _fit_once(predictor, structure, names, max_iter, windows, progress, robust, subset_only=True,
-                         coarse_share=coarse_share)
-    result = _fit_once(predictor, structure, names, max_iter, windows, progress, robust, coarse_share=coarse_share)
+        return _fit_once(predictor, structure, names, max_iter, windows, progress, robust, subset_only=True)
+    result = _fit_once(predictor, structure, names, max_iter, windows, progress, robust)
     if restarts <= 0 or not (result.on_bound or result.cost_train > FAR_ABOVE * predictor.noise_floor):
         return result
     tried = [result]
     for start in restart_points(structure, names, restarts, predictor.design.seed):
-        tried.append(_fit_once(predictor, start, names, max_iter, windows, progress, robust, coarse_share=coarse_share))
+        tried.append(_fit_once(predictor, start, names, max_iter, windows, progress, robust))
     best = min(tried, key=lambda r: r.cost_train)
     best.starts = len(tried)
     best.seconds = sum(r.seconds for r in tried)
@@ -361,10 +359,10 @@ class _Partial:
 
 
 def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, windows, progress,
-              robust: bool, subset_only: bool = False, coarse_share: float | None = None) -> FitResult:
+              robust: bool, subset_only: bool = False) -> FitResult:
     """One fit from the structure's values (``fit``).
 
-    Two LM phases: on a seeded ``coarse_share`` of the windows until the step is within COARSE_SE of
+    Two LM phases: on a seeded quarter of the windows until the step is within COARSE_SE of
     that subset's standard errors, then on all windows until it is within STEP_SE of theirs
     (each LM run at most ``max_iter`` iterations; the second repeated while the loss scale
     falls, SCALE_ROUNDS). ``progress(iteration, cost)`` gets the mean loss per residual over
@@ -379,7 +377,7 @@ def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, 
     lo, hi = structure.bounds(names)
     x = np.clip(structure.vector(names), lo, hi)
     done = 0
-    subset = coarse_windows(windows, predictor.design.seed, coarse_share)
+    subset = coarse_windows(windows, predictor.design.seed)
     if subset is not None:
         scale = _scale_at(predictor, structure, names, robust, x, subset)
         coarse = Objective(predictor, structure, names, subset, lo, hi, COARSE_SE, scale)
@@ -448,11 +446,9 @@ def _reporter(progress, done: int):
     return on_iter
 
 
-def coarse_windows(windows: np.ndarray, seed: int, share: float | None = None) -> np.ndarray | None:
-    """The seeded ``share`` (default COARSE_SHARE) of the windows the first LM phase runs on, at
-    least COARSE_MIN (None: too few for two phases)."""
-    share = COARSE_SHARE if share is None else share
-    n = max(COARSE_MIN, int(round(share * len(windows))))
-    if share <= 0 or 2 * n > len(windows):
+def coarse_windows(windows: np.ndarray, seed: int) -> np.ndarray | None:
+    """The seeded share of the windows the first LM phase runs on (None: too few for two phases)."""
+    n = max(COARSE_MIN, int(round(COARSE_SHARE * len(windows))))
+    if COARSE_SHARE <= 0 or 2 * n > len(windows):
         return None
     return np.sort(np.random.default_rng(seed).choice(windows, n, replace=False))
