@@ -47,6 +47,7 @@ class ArmSpec:
     motor_inertia: float = 5e-5     # [kg m^2] rotor + coupling + wave generator
     hub_inertia: float = 2e-3       # [kg m^2]
     k_m: float = 0.25               # motor torque constant [N m/A]
+    max_current: float = 20.0       # [A] amplifier limit, the actuator's ctrlrange (5 N m at k_m)
     gravity: float = 9.81           # [m/s^2]; 0 (or False) switches gravity off
     input_delay: float = 0.0        # [s] current-to-torque delay (native actuator delay)
     input_offset: float = 0.0       # [N m] constant motor torque added to u (amplifier offset)
@@ -64,6 +65,7 @@ class ArmSpec:
         check("motor_inertia", self.motor_inertia, 0.0, lo_open=True)
         check("hub_inertia", self.hub_inertia, 0.0, lo_open=True)
         check("k_m", self.k_m, 0.0, lo_open=True)
+        check("max_current", self.max_current, 0.0, lo_open=True)
         check("timestep", self.timestep, 1e-6, 0.01)
         check("gravity", self.gravity, 0.0, 100.0)
         check("input_delay", self.input_delay, 0.0, MAX_DELAY_SAMPLES * self.timestep)
@@ -156,6 +158,7 @@ def build_arm(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), *,
     spec.body("hub").inertia = [arm.hub_inertia] * 3
     _rebuild_rod(spec, arm)
     set_input(spec.actuator("current"), arm.k_m, arm.input_offset, arm.input_delay)
+    spec.actuator("current").ctrlrange = [-arm.max_current, arm.max_current]
     # The home keyframe must match the (possibly new) number of joints.
     for key in spec.keys:
         key.qpos = np.zeros(2 + arm.segments)

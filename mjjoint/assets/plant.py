@@ -9,7 +9,14 @@ from .drive import DriveSpec, build_drive
 
 
 def build_plant(plant: ArmSpec | DriveSpec, joint: JointParams) -> mujoco.MjSpec:
-    """The ``MjSpec`` (without a scene) of ``plant`` with the joint physics ``joint``."""
+    """The ``MjSpec`` (without a scene) of ``plant`` with the joint physics ``joint``.
+
+    A recorded input is what was applied, so no amplifier limit may clip it: the shipped arm's
+    control range (the lab motor's 5 N m) is lifted, and a drive's is sized from the recording
+    (``problem.drive_structure``)."""
     if isinstance(plant, DriveSpec):
         return build_drive(plant, joint)
-    return build_arm(plant, joint, scene=False)
+    spec = build_arm(plant, joint, scene=False)
+    for act in spec.actuators:
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    return spec

@@ -205,6 +205,16 @@ def finish(outputs: dict[str, Path], spawn: bool) -> None:
             print(f"{PROG}: {problem}: {how_to_view(outputs['rrd'])}", file=sys.stderr)
 
 
+def _note_clipping(sim: Simulator, u: np.ndarray) -> None:
+    """Say so where the input exceeds an actuator's range: MuJoCo clips it, as an amplifier would,
+    and the traces show the clipped torque."""
+    clipped = np.any(sim.applied(u) != u, axis=1)
+    if clipped.any():
+        top = float(np.min(np.abs(sim.applied(np.full((1, u.shape[1]), np.inf)))))
+        print(f"{PROG}: note: u exceeds the motor's range of {top:g} N m on {clipped.mean():.0%} of the samples and "
+              "is clipped there ([arm] max_current x k_m sets the range)", file=sys.stderr)
+
+
 def run(args: argparse.Namespace) -> int:
     model = read_model_file(args.model) if args.model is not None else ModelFile()
     rate = model.sample_rate if args.rate is None else check("--rate", args.rate, 0.0, lo_open=True)
@@ -218,7 +228,9 @@ def run(args: argparse.Namespace) -> int:
     sim = Simulator(model.compile(), sample_rate=rate)
     check_memory(sim, rate, duration)
     u = excitation.sample(rate, duration)
-    traces = simulate_chunked(sim, np.repeat(u[:, None], len(sim.joints), axis=1))
+    u_joints = np.repeat(u[:, None], len(sim.joints), axis=1)
+    _note_clipping(sim, u_joints)
+    traces = simulate_chunked(sim, u_joints)
     many = len(traces) > 1
     if many and "plot" in outputs:  # one plot per joint: NAME1.png, NAME2.png, ...
         path = outputs.pop("plot")

@@ -6,7 +6,10 @@ bytes. Wall times, the command line and the file list go to ``run.json``, writte
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
+
+import numpy as np
 
 from ..assets import ArmSpec
 from ..diagnosis.loop import Diagnosis
@@ -33,14 +36,17 @@ def model_labels(n_steps: int) -> list[str]:
 MODEL_FILE = "model.toml"
 
 
-def write_model(folder: Path, structure: Structure, rate: float) -> list[Path]:
+def write_model(folder: Path, structure: Structure, measured) -> list[Path]:
     """The fitted model as a model file that ``mjjoint simulate --model`` (and ``--model`` of fit
-    and diagnose) takes back, at the recording's sample rate; none for a direct drive, which
-    model files do not describe."""
+    and diagnose) takes back, at the recording's sample rate, its amplifier limit wide enough for
+    the recorded input (``measured``); none for a direct drive, which model files do not
+    describe."""
     plant, joint = structure.model_params()
     if not isinstance(plant, ArmSpec):
         return []
-    return [dump_model_file(folder / MODEL_FILE, plant, joint, sample_rate=rate)]
+    top = 1.01 * float(np.max(np.abs(measured.u))) / plant.k_m
+    plant = dataclasses.replace(plant, max_current=max(plant.max_current, top))
+    return [dump_model_file(folder / MODEL_FILE, plant, joint, sample_rate=measured.rate)]
 
 
 def write_diagnosis(folder: Path, predictor: Predictor, diag: Diagnosis, source: str, run: dict) -> dict:
@@ -49,7 +55,7 @@ def write_diagnosis(folder: Path, predictor: Predictor, diag: Diagnosis, source:
     files = [write_json(folder / "diagnosis.json", data)]
     labels = model_labels(len(diag.steps))
     structures = diag.models()
-    files += write_model(folder, structures[-1], predictor.m.rate)
+    files += write_model(folder, structures[-1], predictor.m)
     cmp = compare(predictor, dict(zip(labels, structures)))
     signal = worst_signal(diag.initial.nrmse_test, predictor.signals)
     overview = [labels[0], labels[-1]] if diag.steps else labels
@@ -78,7 +84,7 @@ def write_fit(folder: Path, predictor: Predictor, result: FitResult, initial: St
               run: dict) -> dict:
     """Every file of a fit in ``folder``; returns the fit.json data."""
     data = result.as_dict()
-    files = [write_json(folder / "fit.json", data), *write_model(folder, result.structure, predictor.m.rate)]
+    files = [write_json(folder / "fit.json", data), *write_model(folder, result.structure, predictor.m)]
     cmp = compare(predictor, {"initial": initial, "fitted": result.structure})
     signal = worst_signal(result.nrmse_test, predictor.signals)
     labels = ["initial", "fitted"]
