@@ -1,6 +1,8 @@
 """The verdict does not claim that screens which did not converge ruled their effects out."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from mjjoint.diagnosis.loop import UNRESOLVED_RATIO, unresolved_screens
@@ -26,3 +28,28 @@ def test_quantisation_step_survives_printed_precision():
     q = 100 * np.sin(2 * np.pi * 0.25 * t) + 0.01 * np.random.default_rng(0).normal(size=t.size)
     printed = np.array([float(f"{x:.10g}") for x in np.round(q / lsb) * lsb])
     assert abs(quantisation_step(printed) / lsb - 1) < 1e-5
+
+
+def test_an_unstable_screen_is_retried_at_the_step_its_stability_check_asks_for():
+    """A gear damper a rigid-link fit ran up (to damp a rod it lacked) is ten times too stiff
+    for the flexible rod's light hub at the plant's step: the retry runs at the power-of-two
+    share of the step the check names (half of it was still unstable), within MAX_REFINE."""
+    import pytest
+
+    from mjjoint.assets.builder import ArmSpec
+    from mjjoint.assets.stability import check_model_stability
+    from mjjoint.diagnosis.loop import MAX_REFINE, _instability
+    from mjjoint.identify.structure import Structure
+    from mjjoint.identify.windows import _compile
+
+    s = Structure.create(("linear_stiffness", "transmission_damping", "link_flexibility"), ArmSpec(), 120.0)
+    s = s.with_values({"transmission_damping.d": 80.0})
+    why, again = _instability(s)
+    assert "transmission.damping" in why
+    h = s.nominal.timestep
+    with pytest.raises(ValueError):
+        check_model_stability(_compile(*dataclasses.replace(s, nominal=dataclasses.replace(
+            s.nominal, timestep=h / 2)).model_params()))
+    check_model_stability(_compile(*again.model_params()))  # stable: raises otherwise
+    share = h / again.nominal.timestep
+    assert share == 2 ** round(np.log2(share)) and 2 < share <= MAX_REFINE

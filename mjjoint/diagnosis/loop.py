@@ -45,7 +45,8 @@ n log(RSS/n) + p log(n), which charges every added parameter.
 Candidates: every catalogued effect the model lacks; one behind a prerequisite the model lacks
 too is screened together with it (a bundle "linear_stiffness+backlash"): a play cannot show
 through a rigid gear, and a gear spring alone may predict worse than none. A screen whose
-prediction is unstable is reported with the reason and screened again at half the timestep.
+prediction is unstable is reported with the reason and screened again at the timestep its
+stability check asks for (MAX_REFINE).
 
 Verdict: the final model's held-out NRMSE is judged against the recording's noise floor
 (``floor``): "explained" when every signal is within the floor's ratio. The verdict says one of:
@@ -78,6 +79,7 @@ actually decided.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -85,7 +87,7 @@ from typing import Callable
 import numpy as np
 from scipy.stats import wilcoxon
 
-from ..assets.stability import check_model_stability
+from ..assets.stability import check_model_stability, stable_timesteps
 from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, plant_effects
 from ..identify.fit import FitResult, finish, fit, window_costs
 from ..identify.structure import Structure
@@ -252,18 +254,19 @@ def _evidence(key: str, where: dict) -> list[str]:
             if c["significant"] and c["name"] in wanted]
 
 
-def _candidate_variants(effect: str, where: dict) -> list[tuple[dict, dict]]:
-    """(initial values, discrete settings) to screen an effect with, suggested by the evidence
-    (``Effect.variants``)."""
+def _candidate_variants(effect: str, where: dict, structure: Structure) -> list[tuple[dict, dict]]:
+    """(initial values, discrete settings) to screen an effect with on ``structure``, suggested by
+    the evidence (``Effect.variants``)."""
     variants = EFFECTS[effect].variants
-    return [({}, {})] if variants is None else variants([c for _, c in located_conditions(where)])
+    return [({}, {})] if variants is None else variants([c for _, c in located_conditions(where)], structure)
 
 
 def screened_params(key: str, structure: Structure) -> list[str]:
     """The parameters freed when screening ``effect`` on ``structure``.
 
     The candidate's own; those of the effects it refines (adding hysteresis to a gear changes
-    what k1 should be: the base fit's k1 is the secant stiffness of the hysteretic truth); those
+    what k1 should be: the base fit's k1 is the secant stiffness of the hysteretic truth) or that
+    stand in for it (``Effect.stand_ins``: a gear damper fitted to a rod's oscillation); those
     of the effects already in the model that act where it acts (a model without Coulomb
     friction fits a viscous coefficient that stands in for it: EMPS, 424 instead of ~200
     N s/m); and the inertias, which stand in for everything (EMPS without friction: 418 kg for
@@ -273,6 +276,7 @@ def screened_params(key: str, structure: Structure) -> list[str]:
     sites = {EFFECTS[e].site for e in effects}
     related = [e for e in structure.effects if EFFECTS[e].site in sites]
     related += [r for e in effects for r in EFFECTS[e].requires]
+    related += [r for e in effects for r in EFFECTS[e].stand_ins if r in structure.effects]
     names = [p.name for p in base_params(structure.nominal)]
     for e in dict.fromkeys([*related, *effects]):
         names += [p.name for p in EFFECTS[e].params]
@@ -586,7 +590,8 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     free (``fit_iter`` iterations more: a fit that had not converged would otherwise credit any
     flexible candidate with the rest of its descent), and each candidate frees every parameter
     from there and is held against that refit (module doc). A screen whose prediction is
-    unstable is screened again at half the timestep, and why it was goes to ``unstable``.
+    unstable is screened again at the timestep its stability check asks for, and why it was goes
+    to ``unstable``.
     Screens run in two stages (CONTINUE_SHARE); a screen left on the subset reports the held-out
     cost of the reference scaled by its subset cost over the null's.
     """
@@ -596,7 +601,7 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
             ref = fit(predictor, current.structure, max_iter=options.fit_iter)
         say(f"  reference, the model refitted: held-out cost {current.cost_test:.4g} -> {ref.cost_test:.4g}")
     trials = [(name, values, settings) for name in candidates_for(ref.structure, options.candidates)
-              for values, settings in _candidate_variants(parts(name)[-1], where)]
+              for values, settings in _candidate_variants(parts(name)[-1], where, ref.structure)]
     say(f"round {clock.round} of {clock.rounds}: screening {len(trials)} candidate fits"
         + (" with every parameter free" if free_all else "") + ", first on a subset of the windows")
     if not trials:
@@ -617,9 +622,10 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         with clock.phases("screens, subset"):
             res = fit(predictor, trial, freed, max_iter=options.screen_iter, subset_only=True)
             if not res.cost_test < UNSTABLE_COST:
-                unstable[name] = _instability(trial)
-                say(f"  screened {name}: unstable prediction ({unstable[name]}); again at half the timestep")
-                res = fit(predictor, _halved_step(trial), freed, max_iter=options.screen_iter, subset_only=True)
+                unstable[name], again = _instability(trial)
+                say(f"  screened {name}: unstable prediction ({unstable[name]}); again at timestep "
+                    f"{again.nominal.timestep:.3g} s")
+                res = fit(predictor, again, freed, max_iter=options.screen_iter, subset_only=True)
         clock.record(time.perf_counter() - start)
         firsts.append(res)
         starts.append(trial)
@@ -633,8 +639,8 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         with clock.phases("screens, finish"):
             res = finish(predictor, firsts[i])
             if not res.cost_test < UNSTABLE_COST and name not in unstable:
-                unstable[name] = _instability(starts[i])
-                res = fit(predictor, _halved_step(starts[i]), None if free_all else
+                unstable[name], again = _instability(starts[i])
+                res = fit(predictor, again, None if free_all else
                           screened_params(name, ref.structure), max_iter=options.screen_iter)
         if name not in screened or res.cost_test < screened[name][0]:
             screened[name] = (res.cost_test, res)
@@ -664,21 +670,30 @@ def continued(costs: list[float], null: float, names: list[str]) -> list[int]:
 
 
 UNSTABLE_COST = 1e5  # a held-out cost this high holds predictions that diverged (identify.fit._BAD)
+# An unstable screen is retried at the timestep its stability check asks for, at most this many
+# times finer than the plant's: a stiff term a fit ran into (a gear damper on a flexible rod's
+# light hub) needs the step the check names, where half of it left the screen unstable.
+MAX_REFINE = 16
 
 
-def _instability(structure: Structure) -> str:
-    """Why a structure's prediction diverged, in one line."""
+def _instability(structure: Structure) -> tuple[str, Structure]:
+    """(why a structure's prediction diverged, in one line; the structure at the timestep its
+    stability check asks for, a power-of-two share of the plant's down to 1/MAX_REFINE, or half
+    of it where the check finds no term too stiff)."""
     from ..identify.windows import _compile
+    model = _compile(*structure.model_params())
     try:
-        check_model_stability(_compile(*structure.model_params()), hint="the plant's timestep")
+        check_model_stability(model, hint="the plant's timestep")
     except ValueError as err:
-        return str(err)
-    return "the simulation diverged from the window starts"
+        needed = min(h for h, _ in stable_timesteps(model).values())
+        share = 2.0 ** min(math.ceil(math.log2(model.opt.timestep / needed)), math.log2(MAX_REFINE))
+        return str(err), _refined(structure, share)
+    return "the simulation diverged from the window starts", _refined(structure, 2.0)
 
 
-def _halved_step(structure: Structure) -> Structure:
+def _refined(structure: Structure, share: float) -> Structure:
     nominal = structure.nominal
-    return dataclasses.replace(structure, nominal=dataclasses.replace(nominal, timestep=nominal.timestep / 2))
+    return dataclasses.replace(structure, nominal=dataclasses.replace(nominal, timestep=nominal.timestep / share))
 
 
 @dataclass

@@ -117,7 +117,7 @@ def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: d
     lowest held-out cost, to be finished (``identify.fit.finish``)."""
     best = None
     *needed, effect = parts(key)
-    for values, settings in _candidate_variants(effect, where):
+    for values, settings in _candidate_variants(effect, where, structure):
         trial = structure
         for e in needed:
             trial = trial.with_effect(e)

@@ -74,6 +74,9 @@ class Effect:
     apply: Callable[[Any, dict[str, float]], Any]
     requires: tuple[str, ...] = ()
     excludes: tuple[str, ...] = ()
+    # Effects whose fitted values stand in for this one while it is missing (a rigid link's fit
+    # damps the rod's oscillation with the gear's damper): freed with it when it is screened.
+    stand_ins: tuple[str, ...] = ()
     site: str = "motor"    # where it acts: "motor" (torque on the rotor), "gear", "link" or "sensor"
     term: str = ""         # the simulator term it sets (physics.catalogue); "" for the arm's or a sensor's
     # A sensor effect changes what is measured, not the physics: it maps the predicted signals
@@ -86,7 +89,7 @@ class Effect:
     read: Callable[[Any], dict[str, float] | None] | None = None
     # (located conditions) -> [(initial values, discrete settings)] to screen it with; one plain
     # variant when None.
-    variants: Callable[[list[dict]], list[tuple[dict, dict]]] | None = None
+    variants: Callable[[list[dict], Any], list[tuple[dict, dict]]] | None = None
     # A generic form (identify.generic): screened only where no catalogued effect explains a
     # located residual; ``causes`` names the physics that produce the form.
     generic: bool = False

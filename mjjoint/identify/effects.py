@@ -109,7 +109,7 @@ def _load(model: Model, v: dict[str, float]) -> Model:
     return model[0], dataclasses.replace(model[1], load_friction=lf)
 
 
-def _ripple_variants(conds: list[dict]) -> list[tuple[dict, dict]]:
+def _ripple_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
     """The ripple harmonic is not fitted but tried: each signal's residual proposes its own best
     k (they need not agree: the q residual is dominated by other errors), so every distinct
     proposal is screened, most-explained first, at most three."""
@@ -119,12 +119,28 @@ def _ripple_variants(conds: list[dict]) -> list[tuple[dict, dict]]:
     return [({}, {"torque_ripple.harmonic": k}) for k in ks]
 
 
-def _delay_variants(conds: list[dict]) -> list[tuple[dict, dict]]:
+def _delay_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
     """Started at the lag the residual's cross-correlation locates, inside the bound."""
     lags = [c["params"].get("lag_ms") for c in conds if c["name"] == "lag" and c["significant"]]
     if lags and lags[0] > 0:
         return [({"input_delay.delay": min(lags[0] * 1e-3, 0.009)}, {})]
     return [({}, {})]
+
+
+# Rayleigh's share of a uniform cantilever's mass that moves with its tip in the first mode (33/140).
+RAYLEIGH_ROD_SHARE = 33.0 / 140.0
+
+
+def _flexibility_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
+    """Started where the rod's first mode with the hub held (a cantilever with its tip mass and
+    Rayleigh's share of the rod's, k = 3 EI / L^3) lies at the resonance the residual locates;
+    from the catalogue's EI where none is located."""
+    freqs = [c["params"]["frequency_hz"] for c in conds if c["name"] == "resonance" and c["significant"]]
+    arm = structure.nominal
+    if not freqs:
+        return [({}, {})]
+    mass = structure.values.get("mass.tip", arm.tip_mass) + RAYLEIGH_ROD_SHARE * arm.rod_mass
+    return [({"link_flexibility.ei": mass * (2 * math.pi * freqs[0]) ** 2 * arm.rod_length ** 3 / 3}, {})]
 
 
 def _friction_read(values, present=lambda f: True, coulomb: bool = True):
@@ -237,7 +253,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("link_flexibility", "bending of the link rod (distributed mass-spring, Fig. 5 (b))",
            (Param("link_flexibility.ei", 500.0, 1.0, 1e6, unit="N m^2"),),
            lambda m, v: _arm(m, segments=4, rod_ei=v["link_flexibility.ei"]), site="link",
-           evidence=("resonance",), plot="spectrum",
+           evidence=("resonance",), plot="spectrum", stand_ins=("linear_stiffness", "transmission_damping"),
+           variants=_flexibility_variants,
            read=lambda m: {"link_flexibility.ei": m[0].rod_ei} if getattr(m[0], "segments", 0) else None),
     Effect("input_delay", "dead time between commanded and applied motor torque",
            (Param("input_delay.delay", 1e-3, 0.0, 0.01, log=False, unit="s"),),

@@ -26,7 +26,7 @@ def _set(model, section: str, klass: type, **values):
 
 def _periodic_variants(condition: str, name: str):
     """Start at each distinct period the located condition proposes (its real k; at most three)."""
-    def variants(conds: list[dict]) -> list[tuple[dict, dict]]:
+    def variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
         ranked = sorted((c for c in conds if c["name"] == condition and c["params"].get("k_real")),
                         key=lambda c: -c["score"])
         ks = list(dict.fromkeys(float(c["params"]["k_real"]) for c in ranked))[:3] or [1.0]
