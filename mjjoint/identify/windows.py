@@ -330,8 +330,14 @@ class Predictor:
         return _compile(*structure.model_params())
 
     def stable(self, structure: Structure) -> bool:
-        """Whether the structure's compiled model passes the stability check (memoised)."""
-        return _stable(self._model(structure))
+        """Whether the structure's compiled model passes the stability check (memoised). Values
+        the model refuses (a range the recording's estimate widened past a validated limit, as
+        g beyond 100 m/s^2) score as an unstable model does, not stop the fit."""
+        try:
+            model = self._model(structure)
+        except ValueError:
+            return False
+        return _stable(model)
 
     def _joint(self, model):
         """The joint the recording measures, in ``model``."""
