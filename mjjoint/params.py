@@ -53,6 +53,18 @@ def from_mapping(cls: type, data: dict[str, Any], where: str):
     return cls(**data)
 
 
+def fitting_timestep(rate: float, timestep: float) -> float:
+    """``timestep`` where the sample rate ``rate`` is the model rate divided by an integer
+    (``substeps``), else the largest step below it that divides the sample period: a recording
+    at 4 kHz, 800 Hz or 1024 Hz is simulated at that step against a 0.5 ms model, not refused."""
+    try:
+        substeps(rate, timestep)
+        return timestep
+    except ValueError:
+        period = 1.0 / rate
+        return period / math.ceil(period / timestep)
+
+
 def substeps(rate: float, timestep: float, name: str = "sample_rate") -> int:
     """Model steps per sample: ``rate`` must be the model rate 1/``timestep`` divided by an integer.
 

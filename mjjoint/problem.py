@@ -11,6 +11,7 @@ in the one-line ``ValueError`` messages (``gear_ratio`` or ``--gear-ratio``).
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +28,7 @@ from .identify.structure import Structure
 from .identify.windows import Measured, Predictor, WindowDesign
 from .manipulator import arm_model, arm_predictor, load_note
 from .modelfile import ModelFile
+from .params import fitting_timestep
 from .recordings import MultiRecording, Recording, read_recording, reading_notes
 
 PLANTS = {"arm": "", "linear": "slide", "rotary": "hinge"}  # plant -> direct drive joint type ("": the arm)
@@ -136,7 +138,8 @@ def _started(base: Structure, measured: Measured, from_model: bool) -> Structure
     """``base`` with ranges and initial values from the recording (``identify.initial``); a
     model file's values are the user's and stay."""
     start = estimate(measured, base.nominal.link_inertia, base.nominal)
-    return base.started(start, keep=tuple(base.values) if from_model else ())
+    nominal = dataclasses.replace(base.nominal, timestep=fitting_timestep(measured.rate, base.nominal.timestep))
+    return dataclasses.replace(base, nominal=nominal).started(start, keep=tuple(base.values) if from_model else ())
 
 
 def make_predictor(measured: Measured, inputs: Inputs, say=str) -> Predictor:
@@ -155,7 +158,8 @@ def drive_structure(effects, joint_type: str, measured: Measured) -> Structure:
     start = estimate(measured)
     # The recorded force is what was applied: the amplifier's limit must not clip it.
     limit = max(DriveSpec.ctrl_limit, 1.01 * float(np.max(np.abs(measured.u))) / DriveSpec.k_m)
-    nominal = DriveSpec(joint_type=joint_type, ctrl_limit=limit, v_eps=start.v_eps(DriveSpec.timestep, DriveSpec.v_eps))
+    h = fitting_timestep(measured.rate, DriveSpec.timestep)
+    nominal = DriveSpec(joint_type=joint_type, ctrl_limit=limit, timestep=h, v_eps=start.v_eps(h, DriveSpec.v_eps))
     return Structure.create(effects, nominal, 1.0, start=start)
 
 
