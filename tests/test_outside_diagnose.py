@@ -27,8 +27,6 @@ def test_a_hysteretic_gear_of_the_independent_plant_is_named(tmp_path):
 KNOWN_FAILURES: dict[str, str] = {
     "small_motor": "explained at 1.47x the tool's floor, whose windowing part (its twin, 0.032-0.034) is "
                    "3x the true sensors' floor; the scorer cannot check the twin independently",
-    "backlash_wide": "explained at delta 0.037 under the tool's floor 0.039 (its simulated twin under the same "
-                     "windowing), 4x the true sensors' floor; as small_motor",
 }
 
 
