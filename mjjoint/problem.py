@@ -30,6 +30,7 @@ from .manipulator import arm_model, arm_predictor, load_note
 from .modelfile import ModelFile
 from .params import fitting_timestep
 from .recordings import MultiRecording, Recording, read_recording, reading_notes
+from .recordings.consistency import gear_sides_problem, torque_sign_problem
 
 PLANTS = {"arm": "", "linear": "slide", "rotary": "hinge"}  # plant -> direct drive joint type ("": the arm)
 
@@ -178,7 +179,20 @@ def _stacked(recording, recs: list, gear_ratio: float, notes: list[str], output:
                              "(give a multi-joint recording alone)")
         notes += [f"{_source(given)}: " * several + note for note in reading_notes(rec.meta)]
     parts = [Measured.from_recording(rec, gear_ratio, output=output) for rec in recs]
+    for given, part in zip(_each(recording), parts):
+        _check_conventions(part, _source(given))
     return parts[0] if not several else Measured.stack(parts)
+
+
+def _check_conventions(measured: Measured, source: str) -> None:
+    """Refuse, in one line, a geared joint whose angles or torques are not read as the model
+    takes them (``recordings.consistency``)."""
+    m = measured
+    problem = None if m.theta is None else gear_sides_problem(m.q, m.theta, m.gear_ratio)
+    if problem is None and m.tau is not None:
+        problem = torque_sign_problem(m.u, m.q, m.theta, m.tau, m.gear_ratio, m.rate)
+    if problem is not None:
+        raise ValueError(f"{source}: {problem}")
 
 
 class _Names:
@@ -284,6 +298,7 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
         base = bases[j - 1]
         try:
             measured = Measured.from_recording(rec.joint(j), base.gear_ratio)
+            _check_conventions(measured, "the recording")
             predictor = make_predictor(measured, inputs, say)
             started = _started(base, measured, model is not None)
             if arm is not None:

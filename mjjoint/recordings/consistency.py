@@ -1,0 +1,85 @@
+"""Whether a recording's signals are read on the sides and with the signs the model takes.
+
+A recording that breaks a convention fits without complaint to a model that cannot be right,
+so it is refused with what it looks like and the remedy:
+
+* angles: q is the motor angle before the gear, theta the link angle after it, so wherever the
+  link follows the motor q moves about N times theta (q read after the gear, the two swapped,
+  one encoder's sign flipped, another gear ratio break it);
+* the sign of u: the rotor's power balance, (u - tau/N) w = d/dt(J w^2/2) + F w with friction
+  taking work out, so over a recording the torque left on the rotor does work on it; a flipped
+  u makes it give work back instead;
+* the sign of tau: the gear is a spring (play and hysteresis included), so tau rises with the
+  deflection q/N - theta; a flipped tau falls with it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+# The link follows the motor when the two angles correlate at least this well; below it (an
+# output held still, a gear whose play or compliance dominates the motion) there is nothing to
+# compare.
+FOLLOWS = 0.9
+# q per theta within this factor of the gear ratio either way is a gear read on its two sides
+# (the deflection moves it by a small fraction).
+RATIO_FACTOR = 2.0
+
+
+# The rotor gives back more than this share of the work the torques on it exchange: a sign is
+# flipped (friction alone makes the mean power positive; the kinetic energy's change over the
+# recording is a small share of what a driven rotor exchanges).
+GIVES_BACK = 0.2
+# tau against the deflection: a spring's correlation is near +1 (0.84-1.0 over the benchmark
+# recordings, play and hysteresis included); this far below zero it is a flipped sign.
+SPRING_SIGN = -0.5
+
+
+def gear_sides_problem(q: np.ndarray, theta: np.ndarray, gear_ratio: float) -> str | None:
+    """A one-line account of what the angles look like where q does not move about ``gear_ratio``
+    times theta, with the remedy; None where they agree or cannot be compared."""
+    dq, dth = q - np.mean(q), theta - np.mean(theta)
+    sq, sth = float(np.sqrt(dq @ dq)), float(np.sqrt(dth @ dth))
+    if not (sq > 0 and sth > 0):
+        return None
+    r = float(dq @ dth) / (sq * sth)
+    if abs(r) < FOLLOWS:
+        return None
+    slope = float(dq @ dth) / float(dth @ dth)  # q per theta
+    n = gear_ratio
+
+    def near(x: float, target: float) -> bool:
+        return target / RATIO_FACTOR < x < target * RATIO_FACTOR
+
+    if near(slope, n):
+        return None
+    seen = f"q moves {slope:.3g} times theta where the gear ratio is {n:g}"
+    if near(-slope, n):
+        return f"{seen}: one encoder counts the other way; flip it (--scales theta=-1)"
+    if near(abs(slope), 1.0):
+        return f"{seen}: q looks read after the gear; give the motor angle before it (--scales q={n:g})"
+    if near(abs(slope), 1.0 / n):
+        return f"{seen}: q and theta look swapped; map them the other way (--columns q=...,theta=...)"
+    return f"{seen}: check --gear-ratio and the angles' units (--scales)"
+
+
+def torque_sign_problem(u: np.ndarray, q: np.ndarray, theta: np.ndarray | None, tau: np.ndarray,
+                        gear_ratio: float, rate: float) -> str | None:
+    """A one-line account where the torque left on the rotor, u - tau/N, gives work back over
+    the recording (u's sign flipped) or tau falls as the gear's deflection grows (tau's sign
+    flipped), with the flip that restores it; None otherwise."""
+    if theta is not None:
+        r = float(np.corrcoef(tau, q / gear_ratio - theta)[0, 1])
+        if r < SPRING_SIGN:
+            return (f"tau falls as the gear's deflection q/N - theta grows (correlation {r:.2f}; a spring's rises): "
+                    "tau's sign looks opposite; flip it (--scales tau=-1)")
+    w = np.gradient(q, 1.0 / rate)
+    t = tau / gear_ratio
+    exchanged = float(np.mean(np.abs(u * w)) + np.mean(np.abs(t * w)))
+    rotor = float(np.mean((u - t) * w))
+    if not (exchanged > 0 and rotor < -GIVES_BACK * exchanged):
+        return None
+    seen = (f"the torque left on the rotor, u - tau/N, gives back {-rotor / exchanged:.0%} of the work the torques "
+            "exchange with it (its friction would take work out)")
+    if float(np.mean((-u - t) * w)) > 0:
+        return f"{seen}: u's sign looks opposite to q's; flip it (--scales u=-1)"
+    return f"{seen}: check the signs and units of u and tau"
