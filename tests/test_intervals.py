@@ -120,7 +120,7 @@ def test_a_parameter_whose_cost_is_far_from_quadratic_gets_an_interval_that_cove
     se(theta) = se((theta - 5)^3) / 3 (theta_hat - 5)^2, holds 5 only when
     |theta_hat - 5|^3 < 0.65 se((theta - 5)^3): about half the time. The checked interval is
     the profile's, quadratic in (theta - 5)^3: it covers at the nominal rate. (The offset keeps
-    the interval narrower than the value, which would flag it as poorly identifiable.)"""
+    the interval narrower than the value: a wider one is flagged poorly identifiable, unchecked.)"""
     rng = np.random.default_rng(5)
     trials, linearised, checked, flagged = 300, 0, 0, 0
     for _ in range(trials):

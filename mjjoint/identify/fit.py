@@ -12,7 +12,8 @@ Jacobian's columns around a point whose model passed the stability check are not
 again (``Predictor.predict(assume_stable=True)``). 95 % intervals come from the Jacobian at
 the optimum, with the windows as the independent units (``intervals``: a window's residuals
 share its start-state error); a parameter whose interval is wider than its value, or that sits
-on a bound, is flagged.
+on a bound, is flagged. ``check_intervals`` then tests chosen intervals against the cost itself
+(``intervals.profile_intervals``): moved where it is not quadratic over them, or flagged.
 
 Robust cost over windows (``robust=True``; the diagnosis's refits and final estimate, docs/diagnosis.md):
 the fitted objective is sum_i s log(1 + c_i / s) over the windows' mean squared residuals c_i
@@ -467,7 +468,7 @@ def check_intervals(predictor: Predictor, result: FitResult, names) -> FitResult
                                at.windows, predictor, None, at.scale)
     spans, warnings, _ = profile_intervals(lambda xs: np.sum(residual(xs) ** 2, axis=0), at.optimum, at.names,
                                            result.structure, names, result.intervals, result.warnings)
-    return dataclasses.replace(result, intervals=spans, warnings=warnings,
+    return dataclasses.replace(result, intervals=spans, warnings=warnings, at_optimum=None,  # checked once
                                rollouts=result.rollouts + predictor.rollouts - roll0,
                                seconds=result.seconds + time.perf_counter() - start)
 
