@@ -88,8 +88,8 @@ def main(argv=None) -> int:
             for name in own:
                 lo, hi = result.intervals[name]
                 print(f"    {name}: truth {case.truth.values[name]:.4g}, estimate {result.structure.values[name]:.4g}, "
-                      f"interval {lo:.4g} .. {hi:.4g}", *[f"({w})" for w in result.warnings if w.startswith(f"{name} ")],
-                      file=sys.stderr, flush=True)
+                      f"interval {lo:.4g} .. {hi:.4g}",
+                      *[f"({w})" for w in result.warnings if w.startswith(f"{name} ")], file=sys.stderr, flush=True)
         for name in own:
             ident = [c for c, i in rows.get(name, []) if i]
             share = f"{100 * np.mean(ident):5.0f} %" if ident else "    -"

@@ -104,11 +104,13 @@ def _checked(jac, r, x, cost, blocks):
 
 
 def test_a_quadratic_cost_keeps_the_linearised_interval_at_one_evaluation_per_end():
+    """Linear least squares: the cost is exactly quadratic, each end stands at its first
+    evaluation (with the one at the estimate, five for two parameters)."""
     a, y = _windowed_problem(np.random.default_rng(4))
     x, r = _fit(a, y)
     cost = lambda xs: np.sum((a.reshape(-1, 2) @ xs - y.reshape(-1, 1)) ** 2, axis=0)  # noqa: E731
     spans, checked, warnings, evaluations = _checked(a.reshape(-1, 2), r.ravel(), x, cost, (a[None], r[None]))
-    assert evaluations == 4
+    assert evaluations == 5
     assert not warnings
     for name in NAMES:
         np.testing.assert_allclose(checked[name], spans[name], rtol=1e-9)
@@ -154,7 +156,8 @@ def test_an_estimate_that_is_not_the_minimum_over_its_interval_is_flagged():
 
     def cost(xs):
         quadratic = np.sum((a.reshape(-1, 2) @ xs - y.reshape(-1, 1)) ** 2, axis=0)
-        return quadratic - 10 * optimum.rr * np.exp(-((xs[1] - valley) / (0.2 * optimum.half[1])) ** 2)
+        well = np.exp(-((xs[1] - valley) / (0.2 * optimum.half[1])) ** 2)
+        return quadratic - 10 * float(r.ravel() @ r.ravel()) * well
     _, checked = profile_intervals(cost, optimum, NAMES, LINEAR, ["demo.theta"], spans, warnings)[:2]
     flags = [w for w in checked if w.startswith("demo.theta ")]
     assert len(flags) == 1 and UNCALIBRATED in flags[0]

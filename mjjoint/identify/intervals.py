@@ -75,14 +75,13 @@ def near_bound(x, lo, hi):
 @dataclass(frozen=True)
 class Optimum:
     """A fit's optimum as the check of its intervals (``profile_ends``) needs it, in the
-    optimiser's coordinates: the point, its bounds, J'J and r'r there, the intervals'
-    half-widths, and the parameters the intervals flagged (held on the check's path)."""
+    optimiser's coordinates: the point, its bounds, J'J there, the intervals' half-widths, and
+    the parameters the intervals flagged (held on the check's path)."""
 
     x: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
     jtj: np.ndarray
-    rr: float
     half: np.ndarray
     held: np.ndarray
 
@@ -110,7 +109,7 @@ def intervals(jac, r, x, lo, hi, names, structure, jac_blocks, r_blocks):
     if cond > 1e12:
         warnings.append(f"parameters are nearly collinear (cond(J^T J) = {cond:.1e})")
     optimum = Optimum(np.array(x, dtype=float), np.asarray(lo, dtype=float), np.asarray(hi, dtype=float),
-                      jac.T @ jac, float(r @ r), half, held)
+                      jac.T @ jac, half, held)
     return out, warnings, optimum
 
 
@@ -205,10 +204,11 @@ def profile_ends(cost, optimum: Optimum, checked) -> tuple[dict[int, tuple[float
     coordinate), {j: why an end was not found}, and the points evaluated.
 
     ``cost(X)``: r'r at each column of X (parameters x points), of the residual whose J'J the
-    optimum holds. The other parameters follow the path on which, to first order, they are
-    re-fitted (the profile: x + d H^-1 e_j / (H^-1)_jj); parameters the intervals flagged are
-    held. For a quadratic cost (linear least squares) the ends are the intervals' own.
-    All ends are searched together, one ``cost`` call per round.
+    optimum holds; the rise is counted from its value at x (one evaluation more). The other
+    parameters follow the path on which, to first order, they are re-fitted (the profile:
+    x + d H^-1 e_j / (H^-1)_jj); parameters the intervals flagged are held. For a quadratic
+    cost (linear least squares) the ends are the intervals' own. All ends are searched
+    together, one ``cost`` call per round.
     """
     free = np.flatnonzero(~optimum.held)
     hinv = np.linalg.pinv(optimum.jtj[np.ix_(free, free)], rcond=EIG_FLOOR, hermitian=True)
@@ -224,13 +224,18 @@ def profile_ends(cost, optimum: Optimum, checked) -> tuple[dict[int, tuple[float
         for sign in (-1.0, 1.0):
             dmax = float(optimum.hi[j] - optimum.x[j] if sign > 0 else optimum.x[j] - optimum.lo[j])
             ends.append(_End(j, sign * path, t, dmax, min(half, dmax)))
-    evaluations = 0
+    if not ends:
+        return {}, {}, 0
+    # The cost at x itself: the fit's residual may be that of its last Jacobian's point, a step
+    # below the optimiser's tolerance away, which is more than a narrow interval's width.
+    centre = float(np.asarray(cost(optimum.x[:, None]), dtype=float)[0])
+    evaluations = 1
     for _ in range(PROFILE_EVALS):
         active = [e for e in ends if e.found is None and e.failed is None]
         if not active:
             break
         points = np.column_stack([np.clip(optimum.x + e.d * e.direction, optimum.lo, optimum.hi) for e in active])
-        rises = np.asarray(cost(points), dtype=float) - optimum.rr
+        rises = np.asarray(cost(points), dtype=float) - centre
         evaluations += len(active)
         for e, rise in zip(active, rises):
             if not rise >= 0:  # lower than the estimate (or NaN): the interval's centre is not the minimum
