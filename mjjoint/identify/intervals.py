@@ -19,6 +19,12 @@ wider than the independent-residual one (Angrist and Pischke, *Mostly Harmless E
 Sec. 8.2: the larger of the two, since a robust estimate from few clusters can come out too
 small), which also keeps directions that J'J does not determine at an infinite width. On the
 same fits it covered the truth for all but a few parameters, each of those just past its end.
+
+Both are linearised: they assume the cost is quadratic over the interval, which a dead zone's
+width (flat-ish below the play, a kink above it) is not. ``profile_intervals`` checks chosen
+intervals against the cost itself: each end stands where the cost rises there as the quadratic
+model says, moves to where it does (the profile likelihood's end, on the same scale) where not,
+and the parameter is flagged where no such end is found (docs/diagnosis.md, "Intervals").
 """
 from __future__ import annotations
 
