@@ -26,7 +26,7 @@ from mjjoint.benchmark.cases import CONCEALED, GEAR_RATIO, make_case
 from mjjoint.benchmark.score import write_case_recording
 from mjjoint.diagnosis.floor import noise_floor
 from mjjoint.identify.effects import EFFECTS
-from mjjoint.identify.fit import fit
+from mjjoint.identify.fit import check_intervals, fit
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.recordings import read_recording
@@ -50,6 +50,10 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--fit-iter", type=int, default=30)
     ap.add_argument("--effects", default=",".join(EFFECTS_SCORED))
+    ap.add_argument("--check", choices=("own", "all", "none"), default="own",
+                    help="whose intervals are checked against the model (fit.check_intervals): the concealed "
+                         "effect's parameters (as the diagnosis checks the effects it names), every "
+                         "parameter's, or none (the linearised intervals)")
     args = ap.parse_args(argv)
     unknown = [e for e in args.effects.split(",") if e not in CONCEALED or e == "none"]
     if unknown:
@@ -67,12 +71,25 @@ def main(argv=None) -> int:
             predictor = Predictor(Measured.from_recording(rec, GEAR_RATIO), WindowDesign(seed=seed))
             start = Structure.create(case.truth.effects, case.truth.nominal, GEAR_RATIO, settings=case.truth.settings)
             result = fit(predictor, start, max_iter=args.fit_iter)
+            fitted = result.rollouts
+            if args.check != "none":
+                result = check_intervals(predictor, result, own if args.check == "own" else list(result.intervals))
             explained = noise_floor(predictor, result.structure).explained(result.nrmse_test)
             for name, c in covered(result, case.truth, explained).items():
                 rows.setdefault(name, []).append(c)
                 pooled.setdefault(name, []).append(c)
+                if c == (False, True) and name not in own:
+                    lo, hi = result.intervals[name]
+                    print(f"    missed: {name}: truth {case.truth.values[name]:.4g}, estimate "
+                          f"{result.structure.values[name]:.4g}, interval {lo:.4g} .. {hi:.4g}", file=sys.stderr)
             print(f"  {effect} seed {seed}: {'explained' if explained else 'NOT explained'}, held-out NRMSE "
-                  + ", ".join(f"{s} {v:.3f}" for s, v in result.nrmse_test.items()), file=sys.stderr, flush=True)
+                  + ", ".join(f"{s} {v:.3f}" for s, v in result.nrmse_test.items())
+                  + f"; fit {fitted:.0f} rollouts, check {result.rollouts - fitted:.1f}", file=sys.stderr, flush=True)
+            for name in own:
+                lo, hi = result.intervals[name]
+                print(f"    {name}: truth {case.truth.values[name]:.4g}, estimate {result.structure.values[name]:.4g}, "
+                      f"interval {lo:.4g} .. {hi:.4g}",
+                      *[f"({w})" for w in result.warnings if w.startswith(f"{name} ")], file=sys.stderr, flush=True)
         for name in own:
             ident = [c for c, i in rows.get(name, []) if i]
             share = f"{100 * np.mean(ident):5.0f} %" if ident else "    -"

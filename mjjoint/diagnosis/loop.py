@@ -89,7 +89,7 @@ from scipy.stats import wilcoxon
 
 from ..assets.stability import check_model_stability, stable_timesteps
 from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, plant_effects
-from ..identify.fit import FitResult, finish, fit, window_costs
+from ..identify.fit import FitResult, check_intervals, finish, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .clock import Phases, ScreenClock
@@ -440,6 +440,10 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 history[-1] = current
             else:
                 history.append(current)
+    named = [name for s in steps for name in s.parameters]
+    if named:  # the named effects' intervals, checked against the model (identify.fit.check_intervals)
+        with phases("interval check"):
+            current = check_intervals(predictor, current, named)
     with phases("locate"):
         # The last round's model, unchanged since (nothing added, the final robust estimate not
         # kept): its residual is located already.

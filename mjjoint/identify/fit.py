@@ -12,7 +12,8 @@ Jacobian's columns around a point whose model passed the stability check are not
 again (``Predictor.predict(assume_stable=True)``). 95 % intervals come from the Jacobian at
 the optimum, with the windows as the independent units (``intervals``: a window's residuals
 share its start-state error); a parameter whose interval is wider than its value, or that sits
-on a bound, is flagged.
+on a bound, is flagged. ``check_intervals`` then tests chosen intervals against the cost itself
+(``intervals.profile_intervals``): moved where it is not quadratic over them, or flagged.
 
 Robust cost over windows (``robust=True``; the diagnosis's refits and final estimate, docs/diagnosis.md):
 the fitted objective is sum_i s log(1 + c_i / s) over the windows' mean squared residuals c_i
@@ -29,13 +30,14 @@ acceptance tests and the reported costs stay mean squares.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 from mujoco import minimize
 
-from .intervals import EIG_FLOOR, intervals, near_bound, residual_variance
+from .intervals import EIG_FLOOR, Optimum, intervals, near_bound, profile_intervals, residual_variance
 from .structure import Structure
 from .windows import Predictor
 
@@ -109,6 +111,8 @@ class FitResult:
     # Set on a fit stopped after its subset phase (``fit(subset_only=True)``): where ``finish``
     # goes on. Such a result holds the held-out cost and NRMSE only (train: NaN, {}).
     partial: "_Partial | None" = field(default=None, repr=False, compare=False)
+    # Where the intervals came from, for their check against the model (``check_intervals``).
+    at_optimum: "_AtOptimum | None" = field(default=None, repr=False, compare=False)
 
     def as_dict(self) -> dict:
         return {"structure": self.structure.describe(), "cost_train": self.cost_train,
@@ -419,7 +423,7 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
     structure, names, windows, lo, hi, x, done = st.structure, st.names, st.windows, st.lo, st.hi, st.x, st.done
     coarse_done, scale = done, _scale_at(predictor, structure, names, st.robust, x, windows)
     for _ in range(SCALE_ROUNDS):
-        obj = Objective(predictor, structure, names, windows, lo, hi, STEP_SE, scale)
+        obj, obj_scale = Objective(predictor, structure, names, windows, lo, hi, STEP_SE, scale), scale
         x, k = _lm(obj, x, st.max_iter, _reporter(progress, done))
         done += k
         new = None if scale is None else _scale_at(predictor, structure, names, st.robust, x, windows, obj)
@@ -428,14 +432,45 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
         scale = new
     best = structure.from_vector(x, names)
     r, jac = obj.final(x)
-    spans, warnings = intervals(jac, r, x, lo, hi, names, best, predictor.window_blocks(jac, len(windows)),
-                                predictor.window_blocks(r, len(windows)))
+    spans, warnings, optimum = intervals(jac, r, x, lo, hi, names, best, predictor.window_blocks(jac, len(windows)),
+                                         predictor.window_blocks(r, len(windows)))
     same = np.array_equal(windows, predictor.train)
     ctr, cte, ntr, nte = evaluate(predictor, best, obj.prediction(x) if same else None)
     return FitResult(best, ctr, cte, ntr, nte, spans, warnings, iterations=done,
                      rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start,
                      coarse_iterations=coarse_done, robust=st.robust,
-                     on_bound=tuple(n for n, b in zip(names, near_bound(x, lo, hi)) if b))
+                     on_bound=tuple(n for n, b in zip(names, near_bound(x, lo, hi)) if b),
+                     at_optimum=_AtOptimum(optimum, names, windows, obj_scale))
+
+
+@dataclass(frozen=True)
+class _AtOptimum:
+    """A fit's optimum (``intervals.Optimum``) with what its cost needs: the parameters' names,
+    the windows and the robust loss's scale (None: least squares)."""
+
+    optimum: Optimum
+    names: list[str]
+    windows: np.ndarray
+    scale: float | None
+
+
+def check_intervals(predictor: Predictor, result: FitResult, names) -> FitResult:
+    """The fit with the intervals of ``names`` checked against the model itself
+    (``intervals.profile_intervals``): each end moved to where the windowed cost, the other
+    parameters following their first-order re-fit, rises as much as the interval assumes, or
+    the parameter flagged where the cost is not quadratic over it. A few rollouts of the fit's
+    windows per end (PROFILE_EVALS at most), counted in ``rollouts``."""
+    at = result.at_optimum
+    if at is None or not names:
+        return result
+    roll0, start = predictor.rollouts, time.perf_counter()
+    residual = residual_matrix(lambda structs, w: predictor.predictions(structs, w), result.structure, at.names,
+                               at.windows, predictor, None, at.scale)
+    spans, warnings, _ = profile_intervals(lambda xs: np.sum(residual(xs) ** 2, axis=0), at.optimum, at.names,
+                                           result.structure, names, result.intervals, result.warnings)
+    return dataclasses.replace(result, intervals=spans, warnings=warnings, at_optimum=None,  # checked once
+                               rollouts=result.rollouts + predictor.rollouts - roll0,
+                               seconds=result.seconds + time.perf_counter() - start)
 
 
 def _reporter(progress, done: int):
