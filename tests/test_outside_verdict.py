@@ -53,3 +53,30 @@ def test_an_unstable_screen_is_retried_at_the_step_its_stability_check_asks_for(
     check_model_stability(_compile(*again.model_params()))  # stable: raises otherwise
     share = h / again.nominal.timestep
     assert share == 2 ** round(np.log2(share)) and 2 < share <= MAX_REFINE
+
+
+def test_a_screen_the_model_refuses_is_reported_and_a_refined_step_goes_back_where_it_can():
+    """At a refined step a catalogued start can lie past a limit tied to the step (the native
+    delay's 24 steps): the screen is reported as refused, not raised. A named effect whose fit
+    is stable at the plant's step is refitted there, so later rounds do not run at the finer one."""
+    from mjjoint.assets.builder import ArmSpec
+    from mjjoint.diagnosis.loop import _at_step, _instability
+    from mjjoint.identify.structure import Structure
+    from mjjoint.identify.windows import Measured, Predictor
+    from mjjoint.recordings import Recording
+    from mjjoint.sim import simulate
+    from mjjoint.excitation import Multisine
+
+    h = 5e-4
+    fine = ArmSpec(timestep=h / 16)
+    s = Structure.create(("linear_stiffness", "input_delay"), fine, 160.0).with_values({"input_delay.delay": 1e-3})
+    why, again = _instability(s)
+    assert "refuses" in why and "input_delay" in why and again is s
+
+    tr = simulate(Multisine().sample(1000, 3))
+    pred = Predictor(Measured.from_recording(Recording(t=tr.t, u=tr.u, q=tr.q, theta=tr.theta, tau=tr.tau), 160.0))
+    soft = Structure.create(("linear_stiffness", "transmission_damping"), fine, 160.0)
+    assert _at_step(pred, soft, h).nominal.timestep == h
+    stiff = soft.with_values({"transmission_damping.d": 1e3})
+    assert not pred.stable(dataclasses.replace(stiff, nominal=ArmSpec(timestep=h)))
+    assert _at_step(pred, stiff, h) is stiff

@@ -381,7 +381,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         tested_on, p_value = consistency["windows"], consistency["p"]
         say(f"adding {best} (held-out cost -{100 * gain:.1f} %, paired p = {p_value:.3g} on {tested_on}), refitting")
         with phases("refit after addition, least squares"):
-            refit = fit(predictor, cand.structure, max_iter=options.fit_iter, progress=iterations)
+            refit = fit(predictor, _at_step(predictor, cand.structure, base.nominal.timestep), max_iter=options.fit_iter,
+                        progress=iterations)
         if refit.cost_test > cand.cost_test:
             refit = cand  # keep the screened fit if the full refit wandered off on held-out data
         if options.robust_refit:
@@ -685,7 +686,10 @@ def _instability(structure: Structure) -> tuple[str, Structure]:
     stability check asks for, a power-of-two share of the plant's down to 1/MAX_REFINE, or half
     of it where the check finds no term too stiff)."""
     from ..identify.windows import _compile
-    model = _compile(*structure.model_params())
+    try:
+        model = _compile(*structure.model_params())
+    except ValueError as err:  # values the model refuses: no step makes them valid
+        return f"the model refuses its values: {err}", structure
     try:
         check_model_stability(model, hint="the plant's timestep")
     except ValueError as err:
@@ -693,6 +697,16 @@ def _instability(structure: Structure) -> tuple[str, Structure]:
         share = 2.0 ** min(math.ceil(math.log2(model.opt.timestep / needed)), math.log2(MAX_REFINE))
         return str(err), _refined(structure, share)
     return "the simulation diverged from the window starts", _refined(structure, 2.0)
+
+
+def _at_step(predictor: Predictor, structure: Structure, timestep: float) -> Structure:
+    """``structure`` back at the plant's ``timestep`` where a screen refined it (``_instability``)
+    and its fitted values are stable there (a gear damper the screen brought down): every later
+    round would otherwise run at the finer step."""
+    if structure.nominal.timestep >= timestep:
+        return structure
+    coarse = dataclasses.replace(structure, nominal=dataclasses.replace(structure.nominal, timestep=timestep))
+    return coarse if predictor.stable(coarse) else structure
 
 
 def _refined(structure: Structure, share: float) -> Structure:
