@@ -628,9 +628,12 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
             res = fit(predictor, trial, freed, max_iter=options.screen_iter, subset_only=True)
             if not res.cost_test < UNSTABLE_COST:
                 unstable[name], again = _instability(trial)
-                say(f"  screened {name}: unstable prediction ({unstable[name]}); again at timestep "
-                    f"{again.nominal.timestep:.3g} s")
-                res = fit(predictor, again, freed, max_iter=options.screen_iter, subset_only=True)
+                if again is trial:  # values the model refuses: no step helps
+                    say(f"  screened {name}: unstable prediction ({unstable[name]})")
+                else:
+                    say(f"  screened {name}: unstable prediction ({unstable[name]}); again at timestep "
+                        f"{again.nominal.timestep:.3g} s")
+                    res = fit(predictor, again, freed, max_iter=options.screen_iter, subset_only=True)
         clock.record(time.perf_counter() - start)
         firsts.append(res)
         starts.append(trial)
@@ -645,8 +648,9 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
             res = finish(predictor, firsts[i])
             if not res.cost_test < UNSTABLE_COST and name not in unstable:
                 unstable[name], again = _instability(starts[i])
-                res = fit(predictor, again, None if free_all else
-                          screened_params(name, ref.structure), max_iter=options.screen_iter)
+                if again is not starts[i]:
+                    res = fit(predictor, again, None if free_all else
+                              screened_params(name, ref.structure), max_iter=options.screen_iter)
         if name not in screened or res.cost_test < screened[name][0]:
             screened[name] = (res.cost_test, res)
         label = f"{name} {settings}" if settings else name
