@@ -140,7 +140,12 @@ def _started(base: Structure, measured: Measured, from_model: bool) -> Structure
     model file's values are the user's and stay."""
     start = estimate(measured, base.nominal.link_inertia, base.nominal)
     nominal = dataclasses.replace(base.nominal, timestep=fitting_timestep(measured.rate, base.nominal.timestep))
-    return dataclasses.replace(base, nominal=nominal).started(start, keep=tuple(base.values) if from_model else ())
+    started = dataclasses.replace(base, nominal=nominal).started(start, keep=tuple(base.values) if from_model else ())
+    try:
+        started.model_params()
+    except ValueError as err:  # a fit from there would score nothing but unstable predictions
+        raise ValueError(f"the model started from the recording's estimates is one the simulator refuses: {err}") from None
+    return started
 
 
 def make_predictor(measured: Measured, inputs: Inputs, say=str) -> Predictor:

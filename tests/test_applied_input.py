@@ -68,3 +68,21 @@ def test_a_range_widened_past_the_models_limits_scores_as_unstable_instead_of_st
     pred = problem.predictor.predict([top], problem.predictor.test)
     pred = pred[0] if isinstance(pred, list) else pred
     assert np.isnan(pred["q"]).all()
+
+
+def test_a_link_heavier_than_the_lab_rods_range_starts_valid_and_fits(tmp_path):
+    """A 500 kg m^2 link (the axis above, scaled) is a 3 t tip on the nominal 0.4 m rod: the
+    start from the recording is a model the simulator takes, and the base fit predicts the
+    motor angle (before, every prediction was NaN: tip_mass was refused past 1000 kg)."""
+    import mjjoint
+    case = make_case("big_axis", 0, duration=3.0)
+    s = 500.0 / case.plant.link_inertia
+    plant = dataclasses.replace(case.plant, link_inertia=500.0, gravity_moment=case.plant.gravity_moment * s,
+                                stiffness=case.plant.stiffness * s, damping=case.plant.damping * s,
+                                load_coulomb=case.plant.load_coulomb * s, load_viscous=case.plant.load_viscous * s)
+    path = write_csv(tmp_path / "heavy.csv", record(plant, case.excitation, case.sensors, 0))
+    problem = load_problem(path, Inputs(gear_ratio=plant.gear_ratio, base=BASE))
+    assert problem.base.values["mass.tip"] > 1000.0
+    problem.base.model_params()  # raises if the simulator refuses the start
+    result = mjjoint.fit(path, gear_ratio=plant.gear_ratio, base=BASE, max_iter=10, restarts=0)
+    assert result.nrmse_test["q"] < 0.1, result.nrmse_test

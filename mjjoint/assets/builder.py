@@ -61,7 +61,7 @@ class ArmSpec:
         check("rod_ei", self.rod_ei, 0.0, lo_open=True)
         check("segment_damping", self.segment_damping, 0.0)
         check("segment_armature", self.segment_armature, 0.0)
-        check("tip_mass", self.tip_mass, 0.0, 1000.0)
+        check("tip_mass", self.tip_mass, 0.0, 1e6)  # an industrial link as a tip on the 0.4 m rod: 1e3s of kg
         check("motor_inertia", self.motor_inertia, 0.0, lo_open=True)
         check("hub_inertia", self.hub_inertia, 0.0, lo_open=True)
         check("k_m", self.k_m, 0.0, lo_open=True)
