@@ -75,8 +75,8 @@ class Structure:
 
     def from_vector(self, x: np.ndarray, names=None) -> "Structure":
         ps = self._select(names)
-        # Clipped: exp(log(hi)) may round past hi, where the model's own validation refuses it
-        # (a fit that ran tip_mass to its bound of 1000 kg raised ValueError mid-diagnosis).
+        # Clipped: exp(log(hi)) may round past hi, where a bound equal to the model's own
+        # validated limit would be refused.
         return self.with_values({p.name: min(max(p.from_unit(float(v)), p.lo), p.hi) for p, v in zip(ps, x)})
 
     def bounds(self, names=None) -> tuple[np.ndarray, np.ndarray]:
