@@ -11,15 +11,13 @@ in the one-line ``ValueError`` messages (``gear_ratio`` or ``--gear-ratio``).
 """
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from .assets import ArmSpec, DriveSpec
 from .assets.joint_view import single_joint_models
+from .assets.plant import input_range
 from .assets.serial_file import SerialArmFile, read_model_file
 from .identify.effects import SEED_EFFECTS, check_effects, plant_effects
 from .identify.from_model import structure_from_model
@@ -139,8 +137,8 @@ def _started(base: Structure, measured: Measured, from_model: bool) -> Structure
     """``base`` with ranges and initial values from the recording (``identify.initial``); a
     model file's values are the user's and stay."""
     start = estimate(measured, base.nominal.link_inertia, base.nominal)
-    nominal = dataclasses.replace(base.nominal, timestep=fitting_timestep(measured.rate, base.nominal.timestep))
-    started = dataclasses.replace(base, nominal=nominal).started(start, keep=tuple(base.values) if from_model else ())
+    stepped = base.at_timestep(fitting_timestep(measured.rate, base.nominal.timestep))
+    started = stepped.started(start, keep=tuple(base.values) if from_model else ())
     try:
         started.model_params()
     except ValueError as err:  # a fit from there would score nothing but unstable predictions
@@ -163,7 +161,7 @@ def drive_structure(effects, joint_type: str, measured: Measured) -> Structure:
     not from the shipped (EMPS) DriveSpec."""
     start = estimate(measured)
     # The recorded force is what was applied: the amplifier's limit must not clip it.
-    limit = max(DriveSpec.ctrl_limit, 1.01 * float(np.max(np.abs(measured.u))) / DriveSpec.k_m)
+    limit = input_range(measured.u, DriveSpec.k_m, DriveSpec.ctrl_limit)
     h = fitting_timestep(measured.rate, DriveSpec.timestep)
     nominal = DriveSpec(joint_type=joint_type, ctrl_limit=limit, timestep=h, v_eps=start.v_eps(h, DriveSpec.v_eps))
     return Structure.create(effects, nominal, 1.0, start=start)

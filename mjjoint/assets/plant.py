@@ -2,10 +2,17 @@
 from __future__ import annotations
 
 import mujoco
+import numpy as np
 
 from ..joint import JointParams
 from .builder import ArmSpec, build_arm
 from .drive import DriveSpec, build_drive
+
+
+def input_range(u, k_m: float, floor: float) -> float:
+    """The amplifier limit [ctrl units] that passes the recorded motor torques ``u`` unclipped:
+    ``floor``, or 1 % above their largest magnitude in ctrl units (u / ``k_m``)."""
+    return max(floor, 1.01 * float(np.max(np.abs(u))) / k_m)
 
 
 def build_plant(plant: ArmSpec | DriveSpec, joint: JointParams) -> mujoco.MjSpec:

@@ -699,8 +699,8 @@ def _instability(structure: Structure) -> tuple[str, Structure]:
     except ValueError as err:
         needed = min(h for h, _ in stable_timesteps(model).values())
         share = 2.0 ** min(math.ceil(math.log2(model.opt.timestep / needed)), math.log2(MAX_REFINE))
-        return str(err), _refined(structure, share)
-    return "the simulation diverged from the window starts", _refined(structure, 2.0)
+        return str(err), structure.at_timestep(model.opt.timestep / share)
+    return "the simulation diverged from the window starts", structure.at_timestep(model.opt.timestep / 2.0)
 
 
 def _at_step(predictor: Predictor, structure: Structure, timestep: float) -> Structure:
@@ -709,13 +709,8 @@ def _at_step(predictor: Predictor, structure: Structure, timestep: float) -> Str
     round would otherwise run at the finer step."""
     if structure.nominal.timestep >= timestep:
         return structure
-    coarse = dataclasses.replace(structure, nominal=dataclasses.replace(structure.nominal, timestep=timestep))
+    coarse = structure.at_timestep(timestep)
     return coarse if predictor.stable(coarse) else structure
-
-
-def _refined(structure: Structure, share: float) -> Structure:
-    nominal = structure.nominal
-    return dataclasses.replace(structure, nominal=dataclasses.replace(nominal, timestep=nominal.timestep / share))
 
 
 @dataclass

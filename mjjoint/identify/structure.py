@@ -65,6 +65,10 @@ class Structure:
         return Structure.create(self.effects, self.nominal, self.gear_ratio, {k: self.values[k] for k in keep},
                                 self.settings, start)
 
+    def at_timestep(self, timestep: float) -> "Structure":
+        """This structure simulated at another step."""
+        return dataclasses.replace(self, nominal=dataclasses.replace(self.nominal, timestep=timestep))
+
     def with_values(self, values: dict[str, float]) -> "Structure":
         return dataclasses.replace(self, values={**self.values, **values})
 

@@ -9,9 +9,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-import numpy as np
-
 from ..assets import ArmSpec
+from ..assets.plant import input_range
 from ..diagnosis.loop import Diagnosis
 from ..identify.fit import FitResult
 from ..identify.structure import Structure
@@ -44,8 +43,7 @@ def write_model(folder: Path, structure: Structure, measured) -> list[Path]:
     plant, joint = structure.model_params()
     if not isinstance(plant, ArmSpec):
         return []
-    top = 1.01 * float(np.max(np.abs(measured.u))) / plant.k_m
-    plant = dataclasses.replace(plant, max_current=max(plant.max_current, top))
+    plant = dataclasses.replace(plant, max_current=input_range(measured.u, plant.k_m, plant.max_current))
     return [dump_model_file(folder / MODEL_FILE, plant, joint, sample_rate=measured.rate)]
 
 
