@@ -309,6 +309,27 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
     # Without the lag: w1 (1 - g hj) = wq (1 - g hj) + hj (other + motor).
     w1 = wq + hj * (other + motor) / (1.0 - g * hj)
     lag = 0.0
+    if isinstance(f, TwoSEP) and hj > 0 and w1 != 0 and sgn(w1) != s.w_sign:
+        # The step reverses the motion: z1 is what Eq. 12 gives at the end of a step at w1,
+        # (1 - g hj + c hj) w1 + hj z1(w1) = (1 - g hj) wq + hj (other + explicit), by bisection
+        # between 0 and the explicit z1's w1 (z1(w) - z1 has the sign of w and grows with |w|).
+        c = f.b * abs(s.z2) if sgn(s.z2) == sgn(w1) else 0.0
+        k = 1.0 - g * hj
+        a = k * wq + hj * (other + explicit)
+
+        def z1_end(w):
+            return twosep_step(s.z1, s.z2, s.omega, s.q_r, s.w_sign, w, h, f.fc, f.fs, f.vs, f.shape, f.sigma,
+                               f.k, f.b, f.asym, f.sigma_asym)[0]
+
+        lo, hi = sorted((0.0, (a - hj * s.z1) / (k + c * hj)))
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            if (k + c * hj) * mid + hj * z1_end(mid) - a > 0:
+                hi = mid
+            else:
+                lo = mid
+        w1 = 0.5 * (lo + hi)
+        return explicit + g * (w1 - wq) - z1_end(w1) - c * w1, _link(p, t, wtheta, hjl, other_l)
     if isinstance(f, TwoSEP) and sgn(s.z2) == sgn(w1) != 0:
         c = f.b * abs(s.z2)
         w1 = (wq * (1.0 - g * hj) + hj * (other + motor)) / (1.0 - g * hj + c * hj)
