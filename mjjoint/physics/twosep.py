@@ -34,7 +34,8 @@ step's w and z1, z2' = d - lam z2 with lam = B|w|/|S|, and is solved exactly ove
 (stiff at speed, where 1/lam is far below h). In MuJoCo the lag force is a damper of slope
 B|z2| on the rotor, unbounded in slow sliding; the plugin applies it linearly implicitly with
 the rotor's other torques (``coupling.kernels.joint_evaluate``), so the pair is integrated
-consistently at any slope.
+consistently at any slope. z1 is applied as the step's start holds it, but on a step that
+reverses the motion, where it is taken at the velocity the step ends with (``reversal_step``).
 """
 from __future__ import annotations
 
