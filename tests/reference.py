@@ -109,6 +109,25 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
     return z1, z2, omega, qr_end, wsign
 
 
+def reversal_step(a, kd, hj, z1, omega, qr, wsign, h, fc, k, asym):
+    """A step that reverses the motion with z1 taken where it ends: kd w1 + hj z1(w1) = a, z1(w1)
+    Eq. 12 from the reversal over a step at w1 (``twosep_step``; the lag's parameters do not enter
+    z1). By bisection between 0 and (a - hj z1) / kd, where z1(w) - z1 has the sign of w and grows
+    with |w|. Returns (w1, z1(w1))."""
+    def z1_end(w):
+        return twosep_step(z1, 0.0, omega, qr, wsign, w, h, fc, fc, 1.0, 1.0, 0.0, k, 0.0, asym, 0.0)[0]
+
+    lo, hi = sorted((0.0, (a - hj * z1) / kd))
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if kd * mid + hj * z1_end(mid) - a > 0:
+            hi = mid
+        else:
+            lo = mid
+    w1 = 0.5 * (lo + hi)
+    return w1, z1_end(w1)
+
+
 # ---- Hysteretic stiffness, Eqs. 16-17 ----------------------------------------------------
 def _stiffness_polynomial(v, k1, k2, k3):
     """sum_i k_i sgn(v)|v|^i for i = 1, 2, 3."""
@@ -309,6 +328,15 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
     # Without the lag: w1 (1 - g hj) = wq (1 - g hj) + hj (other + motor).
     w1 = wq + hj * (other + motor) / (1.0 - g * hj)
     lag = 0.0
+    if isinstance(f, TwoSEP) and hj > 0 and w1 != 0 and sgn(w1) != s.w_sign:
+        # The step reverses the motion: z1 is what Eq. 12 gives at the end of a step at w1,
+        # (1 - g hj + c hj) w1 + hj z1(w1) = (1 - g hj) wq + hj (other + explicit), by bisection
+        # between 0 and the explicit z1's w1 (z1(w) - z1 has the sign of w and grows with |w|).
+        c = f.b * abs(s.z2) if sgn(s.z2) == sgn(w1) else 0.0
+        k = 1.0 - g * hj
+        w1, z1 = reversal_step(k * wq + hj * (other + explicit), k + c * hj, hj, s.z1, s.omega, s.q_r, s.w_sign, h,
+                               f.fc, f.k, f.asym)
+        return explicit + g * (w1 - wq) - z1 - c * w1, _link(p, t, wtheta, hjl, other_l)
     if isinstance(f, TwoSEP) and sgn(s.z2) == sgn(w1) != 0:
         c = f.b * abs(s.z2)
         w1 = (wq * (1.0 - g * hj) + hj * (other + motor)) / (1.0 - g * hj + c * hj)

@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 import reference as ref
 from mjjoint.coupling import kernels
 from mjjoint.assets.drive import drive_joint
-from mjjoint.coupling.layout import AT, FO, FOL, FOL2, FOT, FP, FPL, NSTATE, TP, WP, WPL, pack
+from mjjoint.coupling.layout import AT, FO, FOL, FOL2, FOT, FP, FPL, NSTATE, TP, WP, WPL, Z1, pack
 from mjjoint.joint import JointParams
 from mjjoint.physics import boucwen, load, ripple, roots, stribeck, transmission, twosep
 from mjjoint.physics.boucwen import BoucWen
@@ -186,6 +186,18 @@ def test_boucwen_step(x, dd, p):
 @example(delta=0.004, backlash=0.002)    # beyond it, positive side
 def test_engaged(delta, backlash):
     assert close(transmission.engaged(delta, backlash), ref.engaged(delta, backlash), 0.1)
+
+
+@SETTINGS
+@given(s=reachable_2sep_states(), a=velocity, kd=finite(1.0, 10.0), hj=finite(1e-3, 1e3), h=finite(1e-5, 2e-3),
+       p=twoseps())
+@example(s=(0.08, 0.0, 0.16, 0.02, 1.0), a=-0.5, kd=1.0, hj=10.0, h=5e-4, p=TwoSEP())  # a stop turned back
+@example(s=(0.0, 0.0, 0.0, 0.0, 0.0), a=0.3, kd=1.0, hj=10.0, h=5e-4, p=TwoSEP())      # first motion
+def test_reversal_step(s, a, kd, hj, h, p):
+    z1, _, om, qr, ws = s
+    args = (a, kd, hj, z1, om, qr, ws, h, p.fc, p.k, p.asym)
+    (w, f), (rw, rf) = twosep.reversal_step(*args), ref.reversal_step(*args)
+    assert close(w, rw, abs(a) + hj * abs(z1)) and close(f, rf, abs(z1) + p.fc + abs(p.asym)), (w, rw, f, rf)
 
 
 @SETTINGS
@@ -464,6 +476,25 @@ def test_2sep_presliding_saturates_at_coulomb_after_reversal(direction, p):
     assert gap[travel >= 6 / p.k][0] < 0.01 * p.fc               # ... there after 6/K
     if p.b == 0.0:
         assert np.array_equal(f, s[:, 0])
+
+
+@pytest.mark.parametrize("drive", [0.05, 0.1])
+@pytest.mark.parametrize("w", [-0.05, -0.5])
+def test_a_step_that_reverses_the_rotor_applies_the_presliding_force_it_ends_with(drive, w):
+    """A free rotor sliding backwards (z1 saturated at -Fc) that a forward drive below the
+    break-away turns within the step: the friction applied over that step is the z1 the states
+    hold after it (the force and the states agree), and it brakes the reversal, which the
+    saturated z1 of the motion before, taken explicitly, would push on for the whole step."""
+    p = drive_joint(JointParams(friction=TwoSEP(b=0.0)))
+    blk = pack(p, 0, 0, -1, -1)
+    st_arr = plugin_state(ref.JointState(z1=-P.fc, omega=2 * P.fc, q_r=-0.1, w_sign=-1.0), other=drive)
+    h, hj = 5e-4, 10.0
+    fm, _ = kernels.joint_forces(blk, st_arr, 0.0, w, 0.0, 0.0, h, hj, 0.0)
+    w1 = w + hj * (drive + fm)
+    explicit = w + hj * (drive + P.fc)
+    assert 0.0 < w1 < explicit, (w1, explicit)
+    kernels.joint_advance(blk, st_arr, w1 * h, w1, 0.0, 0.0, h)
+    assert math.isclose(-fm, st_arr[Z1], rel_tol=1e-12), (-fm, st_arr[Z1])
 
 
 def run_2sep_path(p, path, h):

@@ -18,7 +18,7 @@ from ..physics.jit import kernel
 from ..physics.stribeck import static_friction, static_friction_slope, static_friction_step
 from ..physics.transmission import engaged, transmission_stiffness, transmission_torque
 from ..joint import STABILITY_BUDGET
-from ..physics.twosep import twosep_step
+from ..physics.twosep import reversal_step, twosep_step
 from ..physics.load import bearing_friction, bearing_step
 from .layout import (ANY_SITE, AT, FO, FOL, FOL2, FOT, FP, FPL, FRICTION, FRICTION_2SEP, FRICTION_STATIC, HYSTERESIS, LOAD,
                      OMEGA, QR, SITE_TERMS, ADVANCE_TERMS, TP, TRANSMISSION, WP, WPL, WSIGN, X, Z1, Z2)
@@ -161,7 +161,7 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     if kind == FRICTION_STATIC and blk[F.v_eps] <= 0.0 and hj > 0.0:
         fm, fric = exact_static_rotor(blk, st, -t / n + sm, -d_eng / (n * n), wq, hj)
     else:
-        fm, fric = rotor(blk, st, kind, -t / n + sm, -d_eng / (n * n), wq, hj)
+        fm, fric = rotor(blk, st, kind, -t / n + sm, -d_eng / (n * n), wq, h, hj)
     # Link: T + the link-site terms, explicit (their velocity slopes are mild at the rated step),
     # less the bearing, which sticks: taken at the step's end.
     fl = t + sl
@@ -188,7 +188,7 @@ def exact_static_rotor(blk, st, fx, gd, wq, hj):
 
 
 @kernel
-def rotor(blk, st, kind, fx, gd, wq, hj):
+def rotor(blk, st, kind, fx, gd, wq, h, hj):
     """(torque on the motor dof, friction) with 2SEP or the regularised static map: the
     velocity slopes linearly implicit (``implicit_dof``), 2SEP's lag a one-sided damper decided
     on the velocity the step would reach without it; ``fx``: the joint's explicit torque on the
@@ -206,12 +206,30 @@ def rotor(blk, st, kind, fx, gd, wq, hj):
     gm = gd - s0
     om = known_other(st, FO, fm)
     dwm = implicit_dof(fm, gm, om, hj)
-    lag = 0.0
-    if kind == FRICTION_2SEP and st[Z2] * (wq + dwm) > 0.0:
-        c = blk[F.b] * abs(st[Z2])
+    if kind != FRICTION_2SEP:
+        return fm + gm * dwm, f0 + s0 * dwm
+    c = blk[F.b] * abs(st[Z2]) if st[Z2] * (wq + dwm) > 0.0 else 0.0
+    w1 = wq + dwm
+    if hj > 0.0 and w1 != 0.0 and (1.0 if w1 > 0.0 else -1.0) != st[WSIGN]:
+        return twosep_reversal(blk, st, fx, gd, c, om, wq, h, hj)
+    if c != 0.0:
         dwm = implicit_dof(fm - c * wq, gm - c, om, hj)
-        lag = c * (wq + dwm)
-    return fm + gm * dwm - lag, f0 + s0 * dwm + lag
+    lag = c * (wq + dwm)
+    return fm + gm * dwm - lag, f0 + lag
+
+
+@kernel
+def twosep_reversal(blk, st, fx, gd, c, om, wq, h, hj):
+    """(torque on the motor dof, friction) of 2SEP over a step that reverses the motion: z1 taken
+    at the velocity w1 the step ends with (``twosep.reversal_step``), the lag damper ``c`` linearly
+    implicit as ever: (1 - gd hj + c hj) w1 + hj z1(w1) = (1 - gd hj) wq + hj (other + fx).
+
+    At the start of such a step z1 still holds the force of the motion before, which taken
+    explicitly would push the rotor on through its reversal for the whole step."""
+    kd = 1.0 - gd * hj
+    w1, z1 = reversal_step(kd * wq + hj * (om + fx), kd + c * hj, hj, st[Z1], st[OMEGA], st[QR], st[WSIGN], h,
+                           blk[F.fc], blk[F.k], blk[F.asym])
+    return fx + gd * (w1 - wq) - z1 - c * w1, z1 + c * w1
 
 
 @kernel

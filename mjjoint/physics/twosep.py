@@ -34,7 +34,8 @@ step's w and z1, z2' = d - lam z2 with lam = B|w|/|S|, and is solved exactly ove
 (stiff at speed, where 1/lam is far below h). In MuJoCo the lag force is a damper of slope
 B|z2| on the rotor, unbounded in slow sliding; the plugin applies it linearly implicitly with
 the rotor's other torques (``coupling.kernels.joint_evaluate``), so the pair is integrated
-consistently at any slope.
+consistently at any slope. z1 is applied as the step's start holds it, but on a step that
+reverses the motion, where it is taken at the velocity the step ends with (``reversal_step``).
 """
 from __future__ import annotations
 
@@ -43,6 +44,7 @@ from dataclasses import dataclass
 
 from ..params import check
 from .jit import kernel
+from .roots import ITERATIONS, newton_in_bracket
 from .stribeck import smooth_sign, steady_state, stribeck_level  # noqa: F401 (steady_state: public API)
 
 # Width of the regularised sgn(w) in the lag state's drive (Eq. 14), in Stribeck velocities.
@@ -69,8 +71,8 @@ def lag_target(w, fc, fs, vs, shape, sigma, asym, sigma_asym):
 
 
 @kernel
-def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, asym, sigma_asym):
-    """Advance the 2SEP states over one step at velocity ``w``; returns (z1, z2, omega, qr, wsign)."""
+def presliding(z1, omega, qr, wsign, w, h, fc, k, asym):
+    """Eqs. 12-13 over one step at velocity ``w``: (z1, dz1/dw, omega, qr, wsign) at its end."""
     sg = 1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0)
     if sg != 0.0 and sg != wsign:
         # Motion reversal: memorise the stiffness capacity (13) and restart q_r. At the
@@ -81,8 +83,42 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
     qr_new = qr + w * h
     # |q_r| only grows between reversals; past K|q_r| = 40 the increment is below
     # omega e^-40 = 4e-18 omega, under z1's last bit, so the two exp() are skipped (per step).
+    slope = 0.0
     if k * abs(qr) < 40.0:
-        z1 = z1 + sg * omega * (math.exp(-k * abs(qr)) - math.exp(-k * abs(qr_new)))
+        end = math.exp(-k * abs(qr_new))
+        z1 = z1 + sg * omega * (math.exp(-k * abs(qr)) - end)
+        slope = omega * k * h * end
+    return z1, slope, omega, qr_new, wsign
+
+
+@kernel
+def reversal_step(a, kd, hj, z1, omega, qr, wsign, h, fc, k, asym):
+    """The velocity w1 of a step that reverses the motion, its pre-sliding force taken at the
+    step's end: kd w1 + hj z1(w1) = a, z1(w1) what Eq. 12 gives from the reversal at w1 over the
+    step (``presliding``). ``kd`` >= 1 carries the dof's linear implicit slopes, ``hj`` = h / J,
+    ``a`` = kd times the velocity the step would end with without the friction. Returns (w1, z1(w1)).
+
+    z1(w) - z1 has the sign of w and grows with |w|, so the one root lies between 0 and
+    w_x = (a - hj z1) / kd, where the step would end with z1 explicit: Newton within that
+    bracket (``roots``), from w_x (its first step lands where the saturated z1 would stop it).
+    """
+    w = (a - hj * z1) / kd
+    lo = min(w, 0.0)
+    hi = max(w, 0.0)
+    f = z1
+    for _ in range(ITERATIONS):
+        f, df, _, _, _ = presliding(z1, omega, qr, wsign, w, h, fc, k, asym)
+        w_next, lo, hi, done = newton_in_bracket(w, kd * w + hj * f - a, kd + hj * df, lo, hi)
+        if done:
+            break
+        w = w_next
+    return w, f
+
+
+@kernel
+def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, asym, sigma_asym):
+    """Advance the 2SEP states over one step at velocity ``w``; returns (z1, z2, omega, qr, wsign)."""
+    z1, _, omega, qr_new, wsign = presliding(z1, omega, qr, wsign, w, h, fc, k, asym)
     s, s_mag = lag_target(w, fc, fs, vs, shape, sigma, asym, sigma_asym)
     # Eq. 14 is linear in z2 for frozen w and z1: z2' = d - lam z2, solved exactly over the step.
     # The gain (1 - e^-lam_h) h / lam_h from the one exp; its series where that loses digits, and
