@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from mjjoint.coupling.kernels import EVENT_SPEED, SUBSTEPS
 from mjjoint.joint import JointParams
 from mjjoint.physics.stribeck import StaticFriction
 from mjjoint.physics.twosep import TwoSEP
@@ -110,17 +111,17 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
 
 
 def reversal_step(a, kd, hj, z1, omega, qr, wsign, h, fc, k, asym):
-    """A step that reverses the motion with z1 taken where it ends: kd w1 + hj z1(w1) = a, z1(w1)
-    Eq. 12 from the reversal over a step at w1 (``twosep_step``; the lag's parameters do not enter
-    z1). By bisection between 0 and (a - hj z1) / kd, where z1(w) - z1 has the sign of w and grows
+    """A step that reverses the motion with z1 taken where it ends: kd w1 + hj (z1(w1) - z1) = a,
+    z1(w1) Eq. 12 from the reversal over a step at w1 (``twosep_step``; the lag's parameters do not
+    enter z1). By bisection between 0 and a / kd, where z1(w) - z1 has the sign of w and grows
     with |w|. Returns (w1, z1(w1))."""
     def z1_end(w):
         return twosep_step(z1, 0.0, omega, qr, wsign, w, h, fc, fc, 1.0, 1.0, 0.0, k, 0.0, asym, 0.0)[0]
 
-    lo, hi = sorted((0.0, (a - hj * z1) / kd))
+    lo, hi = sorted((0.0, a / kd))
     for _ in range(200):
         mid = 0.5 * (lo + hi)
-        if kd * mid + hj * z1_end(mid) - a > 0:
+        if kd * mid + hj * (z1_end(mid) - z1) - a > 0:
             hi = mid
         else:
             lo = mid
@@ -234,6 +235,7 @@ class JointState:
     q_r: float = 0.0
     w_sign: float = 0.0
     x: float = 0.0
+    pending: tuple | None = None  # 2SEP states where a substepped step ends (joint_forces)
 
     def as_list(self) -> list[float]:
         return [self.z1, self.z2, self.omega, self.q_r, self.w_sign, self.x]
@@ -314,10 +316,20 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
         w1, fric = static_friction_step(a, k, hj, *args)
         motor = explicit + damping * (w1 - wq) - fric
         return motor, _link(p, t, wtheta, hjl, other_l)
-    base, slope = 0.0, 0.0
     if isinstance(f, TwoSEP):
-        base = s.z1
-    elif isinstance(f, StaticFriction):
+        if math.isnan(other):
+            other = -(explicit - s.z1)
+        w1, fric = twosep_velocity(f, s.z1, s.z2, s.omega, s.q_r, s.w_sign, explicit, damping, other, wq, h, hj)
+        s.pending = None
+        if hj > 0 and twosep_event(f, s.w_sign, wq, w1):
+            *end, = twosep_substeps(f, s.z1, s.z2, s.omega, s.q_r, s.w_sign, explicit, damping, other, wq, h, hj,
+                                    SUBSTEPS)
+            w1, s.pending = end[0], tuple(end[1:])
+            # the torque that lands the update w1 = wq + hj (other + torque) where the substeps end
+            return (w1 - wq) / hj - other, _link(p, t, wtheta, hjl, other_l)
+        return explicit + damping * (w1 - wq) - fric, _link(p, t, wtheta, hjl, other_l)
+    base, slope = 0.0, 0.0
+    if isinstance(f, StaticFriction):
         args = (f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps, f.sigma_asym)
         base = static_friction(wq, *args)
         slope = max(0.0, static_friction_slope(wq, *args)) if f.v_eps > 0 else 0.0
@@ -325,24 +337,41 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
     g = damping - slope
     if math.isnan(other):
         other = -motor
-    # Without the lag: w1 (1 - g hj) = wq (1 - g hj) + hj (other + motor).
+    # w1 (1 - g hj) = wq (1 - g hj) + hj (other + motor).
     w1 = wq + hj * (other + motor) / (1.0 - g * hj)
-    lag = 0.0
-    if isinstance(f, TwoSEP) and hj > 0 and w1 != 0 and sgn(w1) != s.w_sign:
-        # The step reverses the motion: z1 is what Eq. 12 gives at the end of a step at w1,
-        # (1 - g hj + c hj) w1 + hj z1(w1) = (1 - g hj) wq + hj (other + explicit), by bisection
-        # between 0 and the explicit z1's w1 (z1(w) - z1 has the sign of w and grows with |w|).
-        c = f.b * abs(s.z2) if sgn(s.z2) == sgn(w1) else 0.0
-        k = 1.0 - g * hj
-        w1, z1 = reversal_step(k * wq + hj * (other + explicit), k + c * hj, hj, s.z1, s.omega, s.q_r, s.w_sign, h,
-                               f.fc, f.k, f.asym)
-        return explicit + g * (w1 - wq) - z1 - c * w1, _link(p, t, wtheta, hjl, other_l)
-    if isinstance(f, TwoSEP) and sgn(s.z2) == sgn(w1) != 0:
-        c = f.b * abs(s.z2)
-        w1 = (wq * (1.0 - g * hj) + hj * (other + motor)) / (1.0 - g * hj + c * hj)
-        lag = c * w1
-    motor = motor + g * (w1 - wq) - lag
+    motor = motor + g * (w1 - wq)
     return motor, _link(p, t, wtheta, hjl, other_l)
+
+
+def twosep_velocity(f: TwoSEP, z1, z2, omega, q_r, w_sign, explicit, g, other, wq, h, hj):
+    """(w1, friction) over one step: w1 = wq + hj (other + explicit + g (w1 - wq) - F), F = z1 + c w1,
+    the lag damper c = B|z2| where z2 has the sign of the w1 reached without it; a step that
+    reverses the motion takes z1 where it ends (``reversal_step``)."""
+    k = 1.0 - g * hj
+    w1 = wq + hj * (other + (explicit - z1)) / k
+    c = f.b * abs(z2) if sgn(z2) == sgn(w1) != 0 else 0.0
+    if hj > 0 and w1 != 0 and sgn(w1) != w_sign:
+        w1, z1 = reversal_step(k * wq + hj * (other + (explicit - z1)), k + c * hj, hj, z1, omega, q_r, w_sign, h,
+                               f.fc, f.k, f.asym)
+        return w1, z1 + c * w1
+    w1 = (wq * k + hj * (other + (explicit - z1))) / (k + c * hj)
+    return w1, z1 + c * w1
+
+
+def twosep_event(f: TwoSEP, w_sign, wq, w1):
+    """A reversal, or the rotor slower than EVENT_SPEED Stribeck velocities at either end."""
+    return (w1 != 0 and sgn(w1) != w_sign) or min(abs(wq), abs(w1)) < EVENT_SPEED * f.vs
+
+
+def twosep_substeps(f: TwoSEP, z1, z2, omega, q_r, w_sign, explicit, g, other, wq, h, hj, n):
+    """n steps of h / n, each ``twosep_velocity`` then ``twosep_step``, under the frozen drive
+    other + explicit + g (w - wq). Returns (w1, z1, z2, omega, q_r, w_sign)."""
+    w = wq
+    for _ in range(n):
+        w, _ = twosep_velocity(f, z1, z2, omega, q_r, w_sign, explicit + g * (w - wq), g, other, w, h / n, hj / n)
+        z1, z2, omega, q_r, w_sign = twosep_step(z1, z2, omega, q_r, w_sign, w, h / n, f.fc, f.fs, f.vs, f.shape,
+                                                 f.sigma, f.k, f.b, f.asym, f.sigma_asym)
+    return w, z1, z2, omega, q_r, w_sign
 
 
 def _link(p: JointParams, t, wtheta, hjl, other_l):
@@ -363,7 +392,9 @@ def joint_advance(p: JointParams, s: JointState, q, wq, theta, wtheta, h) -> Joi
     """States after a semi-implicit Euler step that ended at (q, theta) with velocities (wq, wtheta)."""
     out = JointState(*s.as_list())
     f = p.friction
-    if isinstance(f, TwoSEP):
+    if isinstance(f, TwoSEP) and s.pending is not None:  # substepped by joint_forces: where that ended
+        out.z1, out.z2, out.omega, out.q_r, out.w_sign = s.pending
+    elif isinstance(f, TwoSEP):
         out.z1, out.z2, out.omega, out.q_r, out.w_sign = twosep_step(
             s.z1, s.z2, s.omega, s.q_r, s.w_sign, wq, h, f.fc, f.fs, f.vs, f.shape, f.sigma, f.k, f.b, f.asym,
             f.sigma_asym)

@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 import reference as ref
 from mjjoint.coupling import kernels
 from mjjoint.assets.drive import drive_joint
-from mjjoint.coupling.layout import AT, FO, FOL, FOL2, FOT, FP, FPL, NSTATE, TP, WP, WPL, Z1, pack
+from mjjoint.coupling.layout import AT, FO, FOL, FOL2, FOT, FP, FPL, NSTATE, OMEGA, QR, TP, WP, WPL, WSIGN, Z1, Z2, pack
 from mjjoint.joint import JointParams
 from mjjoint.physics import boucwen, load, ripple, roots, stribeck, transmission, twosep
 from mjjoint.physics.boucwen import BoucWen
@@ -201,14 +201,28 @@ def test_reversal_step(s, a, kd, hj, h, p):
 
 
 @SETTINGS
+@given(s=reachable_2sep_states(), w=velocity, d=finite(-1.0, 1.0), gd=st.just(0.0) | finite(-1.0, 0.0),
+       hj=finite(1e-3, 100.0), h=finite(1e-5, 2e-3), p=twoseps())
+@example(s=(0.08, 1e-3, 0.08, 0.02, 1.0), w=0.3, d=-0.1, gd=0.0, hj=10.0, h=5e-4, p=TwoSEP())  # turned back
+@example(s=(0.0, 0.0, 0.0, 0.0, 0.0), w=0.0, d=0.2, gd=-0.01, hj=10.0, h=5e-4, p=TwoSEP())     # breakaway
+def test_twosep_substeps(s, w, d, gd, hj, h, p):
+    blk = pack(drive_joint(JointParams(friction=p)), 0, 0, -1, -1)
+    got = kernels.twosep_substeps(blk, *s, d, gd, 0.0, w, h, hj, kernels.SUBSTEPS)
+    want = ref.twosep_substeps(p, *s, d, gd, 0.0, w, h, hj, kernels.SUBSTEPS)
+    scales = (abs(w) + hj * (abs(d) + 1.0), 4.0, 50.0, 4.0, 1.0, 1.0)
+    assert all(close(g, r, sc) for g, r, sc in zip(got, want, scales)), (got, want)
+
+
+@SETTINGS
 @given(z2=finite(-50.0, 50.0), w=velocity, b=st.just(0.0) | finite(1e-6, 500.0), hj=finite(0.0, 1e3))  # no subnormal torques
 @example(z2=1.0, w=0.0, b=50.0, hj=10.0)
 @example(z2=0.5, w=0.05, b=50.0, hj=10.0)
 def test_lag_damper_never_reverses_nor_amplifies(z2, w, b, hj):
     """A free rotor with only 2SEP's lag (z1 = 0, nothing else acting): whatever the slope
     B|z2| h/J, its step neither reverses nor amplifies the velocity (the explicit force does once
-    the slope passes 2), and the torque is the literal B|w|z2 as h/J -> 0."""
-    p = drive_joint(JointParams(friction=TwoSEP(b=b)))
+    the slope passes 2), and the torque is the literal B|w|z2 as h/J -> 0. (The pre-sliding
+    spring, which a slow step resolves within it, is made negligible: K tiny keeps z1 at 0.)"""
+    p = drive_joint(JointParams(friction=TwoSEP(b=b, k=1e-9)))
     blk = pack(p, 0, 0, -1, -1)
     st_arr = plugin_state(ref.JointState(z2=z2), other=0.0)
     fm, _ = kernels.joint_forces(blk, st_arr, 0.0, w, 0.0, 0.0, 5e-4, hj, 0.0)
@@ -480,21 +494,28 @@ def test_2sep_presliding_saturates_at_coulomb_after_reversal(direction, p):
 
 @pytest.mark.parametrize("drive", [0.05, 0.1])
 @pytest.mark.parametrize("w", [-0.05, -0.5])
-def test_a_step_that_reverses_the_rotor_applies_the_presliding_force_it_ends_with(drive, w):
+def test_a_step_that_reverses_the_rotor_lands_where_its_substeps_end(drive, w):
     """A free rotor sliding backwards (z1 saturated at -Fc) that a forward drive below the
-    break-away turns within the step: the friction applied over that step is the z1 the states
-    hold after it (the force and the states agree), and it brakes the reversal, which the
-    saturated z1 of the motion before, taken explicitly, would push on for the whole step."""
-    p = drive_joint(JointParams(friction=TwoSEP(b=0.0)))
+    break-away turns within the step: the step is taken in substeps (``kernels.twosep_substeps``),
+    the torque applied lands MuJoCo's update on the velocity they end with, and the advance
+    leaves the states they end with. The reversal is braked (the saturated z1 of the motion
+    before, taken explicitly, would push on for the whole step)."""
+    f = TwoSEP(b=0.0)
+    p = drive_joint(JointParams(friction=f))
     blk = pack(p, 0, 0, -1, -1)
-    st_arr = plugin_state(ref.JointState(z1=-P.fc, omega=2 * P.fc, q_r=-0.1, w_sign=-1.0), other=drive)
+    s = ref.JointState(z1=-P.fc, omega=2 * P.fc, q_r=-0.1, w_sign=-1.0)
+    st_arr = plugin_state(s, other=drive)
     h, hj = 5e-4, 10.0
     fm, _ = kernels.joint_forces(blk, st_arr, 0.0, w, 0.0, 0.0, h, hj, 0.0)
     w1 = w + hj * (drive + fm)
+    want = ref.twosep_substeps(f, s.z1, s.z2, s.omega, s.q_r, s.w_sign, 0.0, 0.0, drive, w, h, hj, kernels.SUBSTEPS)
+    assert close(w1, want[0], abs(w) + 1.0), (w1, want)
     explicit = w + hj * (drive + P.fc)
     assert 0.0 < w1 < explicit, (w1, explicit)
     kernels.joint_advance(blk, st_arr, w1 * h, w1, 0.0, 0.0, h)
-    assert math.isclose(-fm, st_arr[Z1], rel_tol=1e-12), (-fm, st_arr[Z1])
+    got = st_arr[[Z1, Z2, OMEGA, QR, WSIGN]]
+    assert all(close(g, r) for g, r in zip(got, want[1:])), (got, want)
+    assert st_arr[WSIGN] == (1.0 if w1 > 0 else -1.0)
 
 
 def run_2sep_path(p, path, h):
@@ -679,20 +700,27 @@ def test_friction_history(w, h, p):
 
 
 def test_histories_along_a_simulation_are_the_plugins_states():
-    """Run along a simulation's motor velocity and deflection, one sample per step, the 2SEP and
-    Bouc-Wen histories reproduce the states the plugin carried: what windowed prediction relies
-    on to start every window with the friction's and the gear's memory of the motion."""
+    """Run along a simulation's motor velocity and deflection, one sample per step, the Bouc-Wen
+    history reproduces the states the plugin carried, and 2SEP's step does on every step the
+    plugin takes whole: what windowed prediction relies on to start every window with the
+    friction's and the gear's memory of the motion. A step the plugin substeps (a reversal, a
+    slow rotor: ``kernels.twosep_event``) follows the rotor's path within it, which the step's
+    displacement alone does not tell."""
     from mjjoint import Chirp, Simulator
-    from mjjoint.coupling.layout import X
+    from mjjoint.coupling.layout import SUB, X
     sim = Simulator(sample_rate=2000.0)  # one sample per 0.5 ms step
     tr = sim.run(Chirp().sample(2000.0, 1.0))
     blk = sim.joints[0].block
     assert np.ptp(tr.states[:, X]) > 1e-4 and np.sum(np.diff(np.sign(tr.qd)) != 0) > 5  # loops, reversals
     x = kernels.hysteresis_history(blk, tr.delta, tr.states[0, X])
     assert np.max(np.abs(x - tr.states[:, X])) < 1e-6 * np.ptp(tr.states[:, X])
-    # the plugin steps them with each step's own velocity, its displacement over h
-    f = kernels.friction_history(blk, np.diff(tr.q) * 2000.0, 1.0 / 2000.0, tr.states[0])
-    assert np.allclose(f[:, :X], tr.states[1:, :X], rtol=1e-9, atol=1e-12)
+    # a whole step advances them with the step's own velocity, its displacement over h
+    whole = np.flatnonzero(tr.states[:-1, SUB] == 0.0)
+    assert 0 < len(whole) < len(tr.q) - 1
+    w = np.diff(tr.q) * 2000.0
+    for k in whole:
+        f = kernels.friction_history(blk, w[k:k + 1], 1.0 / 2000.0, tr.states[k])
+        assert np.allclose(f[0, :X], tr.states[k + 1, :X], rtol=1e-9, atol=1e-12), k
 
 
 @SETTINGS

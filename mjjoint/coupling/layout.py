@@ -48,12 +48,14 @@ FRICTION_STATIC = BY_SECTION["friction"].kind_code("static")
 # the last evaluation and the other torques on the deflection (kernels.stiffness_limit), the
 # joint's torque on the link at the last evaluation and the other torques on the link dof, the
 # last step's and the one's before, which the bearing's step extrapolates (kernels.bearing).
-# NaN: unknown, after a reset or for states set by hand.
+# NaN: unknown, after a reset or for states set by hand. Last, whether the rotor was substepped
+# over the step just evaluated (1; kernels.rotor) and the 2SEP states where that ended
+# (z1, z2, omega, q_r, w_sign), which the step's advance takes.
 STATE_NAMES = tuple(s for t in TERMS for s in t.states)  # the physical ones, before AT
 Z1, Z2, OMEGA, QR, WSIGN = (STATE_NAMES.index(s) for s in BY_SECTION["friction"].states)
 X = STATE_NAMES.index("x")
-AT, WP, FP, FO, WPL, TP, FOT, FPL, FOL, FOL2 = range(len(STATE_NAMES), len(STATE_NAMES) + 10)
-NSTATE = len(STATE_NAMES) + 10
+AT, WP, FP, FO, WPL, TP, FOT, FPL, FOL, FOL2, SUB = range(len(STATE_NAMES), len(STATE_NAMES) + 11)
+NSTATE = len(STATE_NAMES) + 16  # SUB and the five after it
 
 # The additive terms, as the kernels call them: (torque kernel, first block slot, first state).
 SITE_TERMS = tuple((t.torque, _starts[t.section], _state_starts[t.section]) for t in TERMS if t.torque is not None)

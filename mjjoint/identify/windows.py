@@ -559,11 +559,15 @@ class Predictor:
 
     def _motion(self, i: np.ndarray, path: bool = False) -> dict[str, np.ndarray]:
         """The measured motion at samples ``i`` (``Term.steady``): with ``path``, the deflection
-        of the noise-free path the histories run on."""
+        of the noise-free path the histories run on, and the motor at rest where it moves by
+        less than one play band (REVERSAL_BAND noise std) per sample (``lead_samples``' test)."""
         m, zero = self.m, np.zeros(len(i))
         delta = zero if m.delta is None else (m.delta_path if path else m.delta)[i]
         link = m.theta is not None
-        return {"q": m.q[i], "w": m.qd[i], "theta": m.theta[i] if link else zero,
+        w = m.qd[i]
+        if path:  # a recording that starts within the noise band starts at rest, not sliding
+            w = np.where(np.abs(w) > REVERSAL_BAND * m.q_noise * m.rate, w, 0.0)
+        return {"q": m.q[i], "w": w, "theta": m.theta[i] if link else zero,
                 "wtheta": m.thetad[i] if link else zero, "delta": delta}
 
     def _start_states(self, model, ji, delay: float, windows: np.ndarray, skew: float = 0.0,

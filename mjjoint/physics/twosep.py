@@ -94,21 +94,22 @@ def presliding(z1, omega, qr, wsign, w, h, fc, k, asym):
 @kernel
 def reversal_step(a, kd, hj, z1, omega, qr, wsign, h, fc, k, asym):
     """The velocity w1 of a step that reverses the motion, its pre-sliding force taken at the
-    step's end: kd w1 + hj z1(w1) = a, z1(w1) what Eq. 12 gives from the reversal at w1 over the
-    step (``presliding``). ``kd`` >= 1 carries the dof's linear implicit slopes, ``hj`` = h / J,
-    ``a`` = kd times the velocity the step would end with without the friction. Returns (w1, z1(w1)).
+    step's end: kd w1 + hj (z1(w1) - z1) = a, z1(w1) what Eq. 12 gives from the reversal at w1 over
+    the step (``presliding``). ``kd`` >= 1 carries the dof's linear implicit slopes, ``hj`` = h / J,
+    ``a`` = kd times the velocity the step would end with under the start's z1 (kept apart from
+    z1, so that a rotor balanced to the last bit stays put). Returns (w1, z1(w1)).
 
-    z1(w) - z1 has the sign of w and grows with |w|, so the one root lies between 0 and
-    w_x = (a - hj z1) / kd, where the step would end with z1 explicit: Newton within that
-    bracket (``roots``), from w_x (its first step lands where the saturated z1 would stop it).
+    z1(w) - z1 has the sign of w and grows with |w|, so the one root lies between 0 and a / kd,
+    where the step would end with z1 explicit: Newton within that bracket (``roots``), from a / kd
+    (its first step lands where the saturated z1 would stop it).
     """
-    w = (a - hj * z1) / kd
+    w = a / kd
     lo = min(w, 0.0)
     hi = max(w, 0.0)
     f = z1
     for _ in range(ITERATIONS):
         f, df, _, _, _ = presliding(z1, omega, qr, wsign, w, h, fc, k, asym)
-        w_next, lo, hi, done = newton_in_bracket(w, kd * w + hj * f - a, kd + hj * df, lo, hi)
+        w_next, lo, hi, done = newton_in_bracket(w, kd * w + hj * (f - z1) - a, kd + hj * df, lo, hi)
         if done:
             break
         w = w_next
