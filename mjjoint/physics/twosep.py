@@ -36,6 +36,8 @@ B|z2| on the rotor, unbounded in slow sliding; the plugin applies it linearly im
 the rotor's other torques (``coupling.kernels.joint_evaluate``), so the pair is integrated
 consistently at any slope. z1 is applied as the step's start holds it, but on a step that
 reverses the motion, where it is taken at the velocity the step ends with (``reversal_step``).
+A step that holds a reversal, a stop or a breakaway is taken in substeps of the rotor and these
+states together (``coupling.kernels.twosep_substeps``; docs/design.md, "Integration").
 """
 from __future__ import annotations
 
