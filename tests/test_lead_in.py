@@ -37,6 +37,17 @@ def test_a_resting_start_leads_in_from_the_last_motion_within_the_cap_and_its_lo
     assert _leads(qd, [1200], joins=[1200]).tolist() == [0]
 
 
+def test_a_resting_start_leads_in_from_where_the_motor_last_slid():
+    """Below the sliding speed a stop holds motion under an encoder count that sets the lag's
+    windup at rest: the lead-in starts where the motor last slid, not where it last crept."""
+    qd = np.zeros(3000)
+    qd[:1000] = 10.0                      # sliding
+    qd[1000:1200] = 1.0                   # creeping: moving, below the sliding speed
+    band = REVERSAL_BAND * 1e-4 * RATE
+    assert lead_samples(qd, band, [2000, 1100], [], 1500).tolist() == [801, 0]
+    assert lead_samples(qd, band, [2000, 1100], [], 1500, sliding_speed=5.0).tolist() == [1001, 0]
+
+
 @pytest.fixture(scope="module")
 def lab():
     """A 10 s closed-loop lab recording of seed 0's 2SEP truth, and its true structure."""
@@ -68,6 +79,15 @@ def test_a_window_is_predicted_alike_whatever_windows_come_with_it(lab):
     (some,) = pred.predict([truth], resting[::3])
     for k in every:
         np.testing.assert_array_equal(every[k][resting[::3]], some[k])
+
+
+def test_a_recording_that_starts_at_rest_starts_with_the_friction_unloaded(lab):
+    """The lab recording starts at rest (a fresh model, 2SEP states 0); its first velocity sample
+    is noise, which must not put the history's start on a sliding branch."""
+    truth, measured = lab
+    pred = Predictor(measured, WindowDesign(seed=0))
+    assert measured.qd[0] != 0.0
+    assert pred._motion(np.array([0]), path=True)["w"][0] == 0.0
 
 
 def test_the_lag_gain_is_recovered_with_and_without_the_lead_in(lab):
