@@ -136,7 +136,7 @@ def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[R
 def _started(base: Structure, measured: Measured, from_model: bool) -> Structure:
     """``base`` with ranges and initial values from the recording (``identify.initial``); a
     model file's values are the user's and stay."""
-    start = estimate(measured, base.nominal.link_inertia, base.nominal)
+    start = estimate(measured, base.nominal)
     stepped = base.at_timestep(fitting_timestep(measured.rate, base.nominal.timestep))
     started = stepped.started(start, keep=tuple(base.values) if from_model else ())
     try:

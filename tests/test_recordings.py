@@ -421,6 +421,14 @@ def test_parse_column_map_and_scales() -> None:
     assert parse_scales("theta2=deg") == {"theta2": DEG}
 
 
+def test_the_api_takes_the_scales_the_command_line_does(tmp_path) -> None:
+    """``read_recording(scales={"theta": "deg"})``: the word the option documents, not only a number."""
+    rec = make_recording()
+    path = tmp_path / "rec.npz"
+    np.savez(path, t=rec.t, u=rec.u, q=rec.q, theta=np.degrees(rec.theta))
+    assert np.allclose(read_recording(path, scales={"theta": "deg"}).theta, rec.theta)
+
+
 @pytest.mark.parametrize(
     ("parse", "text", "expected"),
     [

@@ -12,7 +12,8 @@ linear regressions give:
   equation u - tau/N = J a + Fc sgn(v) + d v - offset on the samples where the motor moves
   clearly (|v| > MOVING_SHARE of the speed order), every signal through one zero-phase
   low-pass (CUTOFF); a direct drive has no tau; a geared joint whose tau is not measured is taken as
-  rigid (inertia J_m + J_l/N^2, the nominal link's share taken off, and gravity columns);
+  rigid (inertia J_m + J_l/N^2 and gravity columns), the sum split as the nominal arm's where it
+  is of that size, else evenly between the sides (``_rigid_split``);
 * gear stiffness: least squares of tau = k delta + D delta' + c with the deflection
   delta = q/N - theta where tau is measured, else from a resonance of the input-to-deflection
   response, k = J_red (2 pi f)^2 with the two sides' reduced inertia.
@@ -32,7 +33,7 @@ import numpy as np
 from scipy.signal import butter, csd, filtfilt, welch
 
 from ..sim import held_controls
-from .effects import Param
+from .effects import EFFECTS, Param
 
 # The orders the catalogue's values are set for: the lab arm's, the geometric middle of its
 # recordings' amplitudes (force [N m], speed [rad/s]: 0.16 and 46 for the 5 s default chirp,
@@ -59,6 +60,7 @@ EXCITED = 1e-3
 # The link is started from the recording (``_link_start``) where its estimated inertia lies this
 # many decades or more from the nominal arm's: rounded to its decade, as the orders are.
 LINK_DECADE = 0.5
+STIFFNESS = EFFECTS["linear_stiffness"].params[0]
 
 
 @dataclass(frozen=True)
@@ -107,12 +109,12 @@ def amplitude(x: np.ndarray) -> float:
     return float(np.percentile(np.abs(x - np.median(x)), AMPLITUDE_PERCENTILE))
 
 
-def estimate(measured, link_inertia: float | None = None, arm=None) -> Estimate:
+def estimate(measured, arm=None) -> Estimate:
     """The recording's orders and regression estimates (module doc).
 
-    ``measured``: a ``windows.Measured`` (theta None for a direct drive). ``link_inertia``
-    [kg m^2]: the nominal output-side inertia, for the stiffness from a resonance. ``arm``: the
-    nominal ``ArmSpec``, whose link is started from the recording where it is of another size.
+    ``measured``: a ``windows.Measured`` (theta None for a direct drive). ``arm``: the nominal
+    ``ArmSpec``, whose link is started from the recording where it is of another size (and
+    whose inertias a recording without the gear torque splits its rigid inertia by).
     """
     m = measured
     # One zero-phase low-pass for every signal, derivatives after it: the filter commutes with
@@ -142,17 +144,23 @@ def estimate(measured, link_inertia: float | None = None, arm=None) -> Estimate:
             values.update(_link_start(arm, smooth(m.tau), smooth(m.theta), w, rate(w), guard))
     else:
         # No gear torque: the rigid joint's equation, its inertia J_m + J_l / N^2, the link's
-        # gravity torque as two more columns (its zero angle unknown).
-        gravity = np.column_stack([np.sin(m.theta), np.cos(m.theta)])
+        # gravity torque as two more columns (its zero angle unknown), taken about the mean
+        # angle: over a small swing cos(theta) is a constant, which the offset's column is.
+        swing = m.theta - np.mean(m.theta)
+        gravity = np.column_stack([np.sin(swing), np.cos(swing) - 1.0])
         values.update(_motor_regression(smooth(u), v, a, speed, guard, gravity))
         j_rigid = values.pop("inertia.motor", None)
-        j_link = None if link_inertia is None else link_inertia / m.gear_ratio ** 2
-        if j_rigid is not None and j_link is not None and j_rigid > j_link:
-            values["inertia.motor"] = j_rigid - j_link
+        if j_rigid is not None and arm is not None:
+            values.update(_rigid_split(j_rigid, m.gear_ratio, arm))
+        link_inertia = values.pop("link", None)
         resonance = _resonance(m.u, m.delta, m.rate)
-        if resonance is not None and "inertia.motor" in values:
+        if resonance is not None and link_inertia is not None:
             j_red = 1.0 / (1.0 / link_inertia + 1.0 / (values["inertia.motor"] * m.gear_ratio ** 2))
             values["linear_stiffness.k1"] = j_red * (2.0 * math.pi * resonance) ** 2
+        elif link_inertia is not None and link_inertia != arm.link_inertia:
+            # No resonance in view: the gear starts as stiff, for the link's inertia, as the
+            # nominal's is for its own (the same locked-link frequency).
+            values["linear_stiffness.k1"] = STIFFNESS.initial * link_inertia / arm.link_inertia
     return Estimate(force, speed, values, resonance)
 
 
@@ -174,14 +182,45 @@ def _link_start(arm, tau: np.ndarray, theta: np.ndarray, w: np.ndarray, a: np.nd
     j_link, moment, fl, dl, _ = (float(x) for x in np.linalg.lstsq(cols / norms, tau[moving], rcond=None)[0] / norms)
     if not j_link > 0 or abs(math.log10(j_link / arm.link_inertia)) < LINK_DECADE:
         return {}
-    length = arm.rod_length
-    tip = (j_link - arm.hub_inertia - arm.rod_mass * length ** 2 / 3) / length ** 2
-    if not tip > 0:
+    tip = _tip_mass(arm, j_link)
+    if tip is None:
         return {}
     out = {"mass.tip": tip}
     if moment > 0:
-        out["gravity.g"] = moment / (arm.rod_mass * length / 2 + tip * length)
+        out["gravity.g"] = moment / (arm.rod_mass * arm.rod_length / 2 + tip * arm.rod_length)
     out.update({k: v for k, v in (("load_friction.fc", fl), ("load_friction.viscous", dl)) if v > 0})
+    return out
+
+
+def _tip_mass(arm, j_link: float) -> float | None:
+    """The tip mass that gives the nominal arm the link inertia ``j_link`` (None: below the
+    hub and rod alone)."""
+    length = arm.rod_length
+    tip = (j_link - arm.hub_inertia - arm.rod_mass * length ** 2 / 3) / length ** 2
+    return tip if tip > 0 else None
+
+
+def _rigid_split(j_rigid: float, gear_ratio: float, arm) -> dict[str, float]:
+    """The motor and link inertias of a joint seen only as rigid, ``j_rigid = J_m + J_l / N^2``.
+
+    Below the gear's resonance the two sides move as one, so the recording fixes the sum only.
+    Where the sum is within ``LINK_DECADE`` of the nominal arm's, the nominal link stays and the
+    motor takes the rest. Otherwise the nominal split means nothing at this size, and both start
+    at the matched split J_l = J_m N^2 (the inertia match gear ratios are chosen for); the fit
+    moves both. Returns ``inertia.motor``, the link's parameter where the link is started from
+    here, and ``link``, the link's inertia.
+    """
+    reflected = arm.link_inertia / gear_ratio ** 2
+    if abs(math.log10(j_rigid / (arm.motor_inertia + reflected))) < LINK_DECADE and j_rigid > reflected:
+        return {"inertia.motor": j_rigid - reflected, "link": arm.link_inertia}
+    j_link = 0.5 * j_rigid * gear_ratio ** 2
+    out = {"inertia.motor": 0.5 * j_rigid, "link": j_link}
+    if arm.link_parameter == "mass.tip":
+        tip = _tip_mass(arm, j_link)
+        if tip is not None:
+            out["mass.tip"] = tip
+    elif j_link > arm.link_inertia - arm.hub_inertia:
+        out["inertia.link"] = j_link - (arm.link_inertia - arm.hub_inertia)
     return out
 
 
