@@ -12,6 +12,7 @@ in the one-line ``ValueError`` messages (``gear_ratio`` or ``--gear-ratio``).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,7 +22,7 @@ from .assets.plant import input_range
 from .assets.serial_file import SerialArmFile, read_model_file
 from .identify.effects import SEED_EFFECTS, check_effects, plant_effects
 from .identify.from_model import structure_from_model
-from .identify.initial import estimate
+from .identify.initial import Estimate, estimate
 from .identify.structure import Structure
 from .identify.windows import Measured, Predictor, WindowDesign
 from .manipulator import arm_model, arm_predictor, load_note
@@ -129,14 +130,27 @@ def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[R
     if len(recs) == 1 and not isinstance(recs[0], Recording):
         return _joint_problems(recording, inputs, model, say, recs[0])
     measured = _stacked(recording, recs, base.gear_ratio, notes)
+    measured, start, more = _aligned(measured, base.nominal)
+    notes += more
     predictor = make_predictor(measured, inputs, say)
-    return Problem(_source(recording), predictor, _started(base, measured, model is not None), notes)
+    return Problem(_source(recording), predictor, _started(base, measured, start, model is not None), notes)
 
 
-def _started(base: Structure, measured: Measured, from_model: bool) -> Structure:
-    """``base`` with ranges and initial values from the recording (``identify.initial``); a
-    model file's values are the user's and stay."""
-    start = estimate(measured, base.nominal)
+def _aligned(measured: Measured, nominal) -> tuple[Measured, Estimate, list[str]]:
+    """The recording's estimate (``identify.initial``), and the recording with its link encoder
+    counted from the motor's zero where the two differ (``initial.encoder_offset``), with a note."""
+    start = estimate(measured, nominal)
+    offset = start.theta_offset
+    if not offset:
+        return measured, start, []
+    note = (f"the link encoder counts from another zero than the motor's: the deflection q/N - theta reads "
+            f"{offset:.4g} rad at zero gear torque, more than any torque recorded explains; theta taken {offset:+.4g} rad")
+    return dataclasses.replace(measured, theta=measured.theta + offset), start, [note]
+
+
+def _started(base: Structure, measured: Measured, start: Estimate, from_model: bool) -> Structure:
+    """``base`` with ranges and initial values from the recording (``start``: its ``identify.initial``
+    estimate); a model file's values are the user's and stay."""
     stepped = base.at_timestep(fitting_timestep(measured.rate, base.nominal.timestep))
     started = stepped.started(start, keep=tuple(base.values) if from_model else ())
     try:
@@ -302,8 +316,10 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
         try:
             measured = Measured.from_recording(rec.joint(j), base.gear_ratio)
             _check_conventions(measured, "the recording")
+            measured, start, more = _aligned(measured, base.nominal)
+            notes += [(j, m) for m in more]
             predictor = make_predictor(measured, inputs, say)
-            started = _started(base, measured, model is not None)
+            started = _started(base, measured, start, model is not None)
             if arm is not None:
                 predictor = arm_predictor(measured, started, _arm_file(inputs.arm), arm, rec, j, inputs.design,
                                           inputs.fit_signals, _arm_name(inputs.arm))

@@ -71,6 +71,7 @@ class Estimate:
     speed: float
     values: dict[str, float] = field(default_factory=dict)  # catalogue parameter name -> estimate
     resonance: float | None = None  # [Hz] of the gear, where one is visible
+    theta_offset: float = 0.0  # [rad] the link encoder's zero against the motor's (``encoder_offset``)
 
     @property
     def position(self) -> float:
@@ -161,7 +162,27 @@ def estimate(measured, arm=None) -> Estimate:
             # No resonance in view: the gear starts as stiff, for the link's inertia, as the
             # nominal's is for its own (the same locked-link frequency).
             values["linear_stiffness.k1"] = STIFFNESS.initial * link_inertia / arm.link_inertia
-    return Estimate(force, speed, values, resonance)
+    offset = 0.0
+    if geared and "linear_stiffness.k1" in values:
+        if m.tau is not None:
+            torque, where = smooth(m.tau), slice(None)
+        else:  # the gear torque the motor's equation leaves, where the motor slides
+            torque = m.gear_ratio * (smooth(u) + values["input_offset.offset"] - values.get("inertia.motor", 0.0) * a
+                                     - values.get("coulomb_friction.fc", 0.0) * np.sign(v)
+                                     - values.get("viscous_friction.sigma", 0.0) * v)
+            where = (np.abs(v) > MOVING_SHARE * speed) & ~near_reversal(v, guard)
+        offset = encoder_offset(smooth(m.delta)[where], torque[where], values["linear_stiffness.k1"])
+    return Estimate(force, speed, values, resonance, offset)
+
+
+def encoder_offset(delta: np.ndarray, torque: np.ndarray, k: float) -> float:
+    """[rad] The deflection q/N - theta at zero gear torque, median(delta - T/k), where the torque
+    it would take, k |delta_0|, exceeds every torque the gear carries in the recording (its robust
+    amplitude): no deflection then, but two encoders counting from different zeros. 0 otherwise."""
+    if len(delta) < 10:
+        return 0.0
+    offset = float(np.median(delta - torque / k))
+    return offset if k * abs(offset) > amplitude(torque) else 0.0
 
 
 def _link_start(arm, tau: np.ndarray, theta: np.ndarray, w: np.ndarray, a: np.ndarray, guard: int) -> dict[str, float]:
