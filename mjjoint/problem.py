@@ -29,7 +29,7 @@ from .manipulator import arm_model, arm_predictor, load_note
 from .modelfile import ModelFile
 from .params import fitting_timestep
 from .recordings import MultiRecording, Recording, read_recording, reading_notes
-from .recordings.consistency import gear_sides_problem, torque_sign_problem
+from .recordings.consistency import dead_sensor_problem, gear_sides_problem, motion_problem, torque_sign_problem
 
 PLANTS = {"arm": "", "linear": "slide", "rotary": "hinge"}  # plant -> direct drive joint type ("": the arm)
 
@@ -205,9 +205,12 @@ def _check_conventions(measured: Measured, source: str) -> None:
     """Refuse, in one line, a geared joint whose angles or torques are not read as the model
     takes them (``recordings.consistency``)."""
     m = measured
-    problem = None if m.theta is None else gear_sides_problem(m.q, m.theta, m.gear_ratio)
+    problem = motion_problem(m.q)
+    if problem is None and m.theta is not None:
+        problem = dead_sensor_problem("theta", m.theta) or gear_sides_problem(m.q, m.theta, m.gear_ratio)
     if problem is None and m.tau is not None:
-        problem = torque_sign_problem(m.u, m.q, m.theta, m.tau, m.gear_ratio, m.rate)
+        problem = dead_sensor_problem("tau", m.tau) or torque_sign_problem(m.u, m.q, m.theta, m.tau, m.gear_ratio,
+                                                                           m.rate)
     if problem is not None:
         raise ValueError(f"{source}: {problem}")
 

@@ -11,6 +11,8 @@ so it is refused with what it looks like and the remedy:
   u makes it give work back instead;
 * the sign of tau: the gear is a spring (play and hysteresis included), so tau rises with the
   deflection q/N - theta; a flipped tau falls with it.
+
+Before any of these, the motor must move: a recording of a joint at rest holds nothing to fit.
 """
 from __future__ import annotations
 
@@ -32,6 +34,35 @@ GIVES_BACK = 0.2
 # tau against the deflection: a spring's correlation is near +1 (0.84-1.0 over the benchmark
 # recordings, play and hysteresis included); this far below zero it is a flipped sign.
 SPRING_SIGN = -0.5
+# The motor moves when q spans more than this many of its smallest steps (encoder counts).
+MOVES = 10
+
+
+# What a sensor that never changes while the motor moves means, and what to do about it.
+_DEAD = {
+    "tau": "the torque sensor recorded nothing (leave the tau column out)",
+    "theta": ("the link encoder recorded nothing (without one, fit the motor alone: --plant rotary with theta "
+              "mapped to q's column), or the output was held, which fit and diagnose do not model"),
+}
+
+
+def dead_sensor_problem(signal: str, x: np.ndarray) -> str | None:
+    """What is wrong where ``signal`` (tau or theta) never changes while the motor moves (the gear
+    carries the link's inertia torque, the link follows through it), else None."""
+    if np.ptp(x) > 0:
+        return None
+    return f"{signal} is {float(x[0]):g} throughout while the motor moves: {_DEAD[signal]}"
+
+
+def motion_problem(q: np.ndarray) -> str | None:
+    """What is wrong where the motor angle does not move beyond a few encoder counts, else None."""
+    span = float(np.ptp(q))
+    steps = np.abs(np.diff(q))
+    steps = steps[steps > 1e-9 * span]  # above the rounding of arithmetic on the angles
+    if steps.size and span > MOVES * float(steps.min()):
+        return None
+    return (f"the motor angle q spans {span:.3g} rad, {'no' if not steps.size else 'under ' + str(MOVES)} "
+            "encoder steps: a joint at rest holds nothing to fit (drive it, or check the q column)")
 
 
 def gear_sides_problem(q: np.ndarray, theta: np.ndarray, gear_ratio: float) -> str | None:
