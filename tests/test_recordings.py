@@ -272,6 +272,19 @@ def test_uniform_recording_is_left_as_recorded(tmp_path: Path) -> None:
     np.testing.assert_array_equal(rec.t, t)
 
 
+def test_unix_time_stamps_are_a_uniform_clock(tmp_path: Path) -> None:
+    """Unix time (1.7e9 s) is stored to 2.4e-7 s: a uniform 1 kHz clock there steps unevenly by
+    that much, which is the storage, not jitter to resample (it was, with a note of it)."""
+    path = tmp_path / "unix.csv"
+    t = 1.7e9 + np.arange(N) * DT
+    k = np.arange(N) * DT
+    path.write_text(csv_text("t,u,q,theta,tau", [[repr(float(a)), np.sin(b), b, b / 160, 0.1 * b] for a, b in zip(t, k)]))
+    rec = read_recording(path)
+    assert np.ptp(np.diff(rec.t)) > 1e-7  # the stored steps are uneven
+    assert rec.meta["resampled"] is None
+    np.testing.assert_array_equal(rec.t, t)
+
+
 @pytest.mark.parametrize(
     ("step", "timestep", "tolerance", "expected"),
     [

@@ -48,6 +48,7 @@ MOVING_SHARE = 0.1
 # Low-pass of the regressions' signals [Hz]: the acceleration is a second derivative of an
 # encoder angle; 50 Hz keeps a 20-bit encoder's steps at 1 kHz far below the motion.
 CUTOFF = 50.0
+CUTOFF_NYQUIST = 0.8  # at most this share of the Nyquist frequency
 # A directly estimated parameter may move this many decades either way in the fit.
 DECADES = 3.0
 # The regularised Coulomb slope's step c h the drive models are kept to: the shipped drive's
@@ -120,7 +121,9 @@ def estimate(measured, arm=None) -> Estimate:
     m = measured
     # One zero-phase low-pass for every signal, derivatives after it: the filter commutes with
     # the linear terms of each regression, so they hold between the filtered signals exactly.
-    b, a_ = butter(4, CUTOFF * 2.0 / m.rate)
+    # A slow recording keeps a cutoff below its Nyquist frequency.
+    cutoff = min(CUTOFF, CUTOFF_NYQUIST * m.rate / 2.0)
+    b, a_ = butter(4, cutoff * 2.0 / m.rate)
     smooth = lambda x: filtfilt(b, a_, np.asarray(x, float))  # noqa: E731
     rate = lambda x: np.gradient(x, 1.0 / m.rate)  # noqa: E731
     v = rate(smooth(m.q))
@@ -128,7 +131,7 @@ def estimate(measured, arm=None) -> Estimate:
     # A held sample acts over the period after it: about a sample instant, the mean of it and the
     # one before (``sim.held_controls``) is what the motion there answers to.
     u = held_controls(m.u, 1, m.u[0])
-    guard = int(round(m.rate / CUTOFF))  # the low-pass's reach: one period of its cutoff
+    guard = int(round(m.rate / cutoff))  # the low-pass's reach: one period of its cutoff
     force = _positive(amplitude(m.u), 1.0)
     speed = _positive(amplitude(v), 1.0)
     values: dict[str, float] = {}
