@@ -211,6 +211,8 @@ def _check_conventions(measured: Measured, source: str) -> None:
     if problem is None and m.tau is not None:
         problem = dead_sensor_problem("tau", m.tau) or torque_sign_problem(m.u, m.q, m.theta, m.tau, m.gear_ratio,
                                                                            m.rate)
+    elif problem is None and m.theta is None:  # a direct drive: u alone works on the rotor
+        problem = torque_sign_problem(m.u, m.q, None, None, 1.0, m.rate)
     if problem is not None:
         raise ValueError(f"{source}: {problem}")
 

@@ -82,3 +82,16 @@ def test_the_cli_refuses_a_flat_signal_in_one_line(trace, tmp_path, capsys, sign
     assert main(["fit", str(rec), "--gear-ratio", "160", "--max-iter", "1", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and (f"{signal} is 0 throughout" in err[0] or "a joint at rest" in err[0])
+
+
+def test_a_direct_drive_with_its_input_flipped_is_named(trace, tmp_path, capsys):
+    """A drive has no tau: u alone works on the rotor, and its model has no gravity to give work
+    back either. Flipped, u was fitted (inertia on its bound, held-out q NRMSE 2.5)."""
+    assert torque_sign_problem(trace.u, trace.q, None, None, 1.0, 1000.0) is None
+    assert "--scales u=-1" in torque_sign_problem(-trace.u, trace.q, None, None, 1.0, 1000.0)
+    from mjjoint.cli import main
+    rec = tmp_path / "drive.csv"
+    write_recording(rec, Recording(t=trace.t, u=-trace.u, q=trace.q, theta=trace.q))
+    assert main(["fit", str(rec), "--plant", "rotary", "--max-iter", "1", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the input u gives back" in err[0] and "--scales u=-1" in err[0]

@@ -93,12 +93,15 @@ def gear_sides_problem(q: np.ndarray, theta: np.ndarray, gear_ratio: float) -> s
     return f"{seen}: check --gear-ratio and the angles' units (--scales)"
 
 
-def torque_sign_problem(u: np.ndarray, q: np.ndarray, theta: np.ndarray | None, tau: np.ndarray,
+def torque_sign_problem(u: np.ndarray, q: np.ndarray, theta: np.ndarray | None, tau: np.ndarray | None,
                         gear_ratio: float, rate: float) -> str | None:
     """A one-line account where the torque left on the rotor, u - tau/N, gives work back over
     the recording (u's sign flipped) or tau falls as the gear's deflection grows (tau's sign
-    flipped), with the flip that restores it; None otherwise."""
-    if theta is not None:
+    flipped), with the flip that restores it; None otherwise. ``tau`` None: a direct drive, u
+    alone on the rotor (no gravity in its model either)."""
+    if tau is None:
+        tau = np.zeros_like(u)
+    elif theta is not None:
         r = float(np.corrcoef(tau, q / gear_ratio - theta)[0, 1])
         if r < SPRING_SIGN:
             return (f"tau falls as the gear's deflection q/N - theta grows (correlation {r:.2f}; a spring's rises): "
@@ -109,8 +112,9 @@ def torque_sign_problem(u: np.ndarray, q: np.ndarray, theta: np.ndarray | None, 
     rotor = float(np.mean((u - t) * w))
     if not (exchanged > 0 and rotor < -GIVES_BACK * exchanged):
         return None
-    seen = (f"the torque left on the rotor, u - tau/N, gives back {-rotor / exchanged:.0%} of the work the torques "
-            "exchange with it (its friction would take work out)")
+    left = "the input u" if not np.any(t) else "the torque left on the rotor, u - tau/N,"
+    seen = (f"{left} gives back {-rotor / exchanged:.0%} of the work the torques exchange with the rotor (its "
+            "friction would take work out)")
     if float(np.mean((-u - t) * w)) > 0:
         return f"{seen}: u's sign looks opposite to q's; flip it (--scales u=-1)"
     return f"{seen}: check the signs and units of u and tau"
