@@ -659,6 +659,10 @@ def test_accepted_oddities(tmp_path: Path) -> None:
     rec = read_recording(path, allow_extra=True)
     np.testing.assert_allclose(rec.t, times[0] + np.arange(rec.n) * DT, rtol=0, atol=1e-15)
     assert rec.meta["resampled"]["method"] == "linear interpolation"
+    # Naming the columns to use leaves the others out, and says so.
+    picked = read_recording(path, columns={"t": "t", "u": "u", "q": "q", "theta": "theta"})
+    np.testing.assert_array_equal(picked.q, rec.q)
+    assert any("left out: 'status'" in note for note in reading_notes(picked.meta))
 
 
 def test_mapped_column_missing_from_csv(tmp_path: Path) -> None:
