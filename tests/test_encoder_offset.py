@@ -46,3 +46,16 @@ def test_the_problem_aligns_theta_and_says_so():
     with pytest.warns(UserWarning, match="another zero than the motor's"):
         problem = next(iter(joint_problems(rec, dict(gear_ratio=160.0)).values()))
     assert np.max(np.abs(problem.predictor.m.theta - measured.theta)) < 1e-4
+
+
+@pytest.mark.parametrize("tau", [True, False], ids=["tau", "no tau"])
+def test_a_link_encoder_read_late_is_estimated_from_the_deflection(tau):
+    """A link encoder read ``lag`` late adds lag theta' to the measured deflection beside the
+    gear's T/k: the start of ``sensor_skew.lag`` (a KR300 axis reads 2.5-3.1 ms late this way;
+    2.6-2.8 ms by the dataset module's own alignment)."""
+    measured, arm = geared_recording(3e6, tau=tau, tip_mass=500.0, chirp=Chirp(amplitude=3.0, f_start=5.0))
+    nominal = ArmSpec(segments=0, gravity=0.0)
+    t = np.arange(measured.t.size) / measured.rate
+    assert abs(estimate(measured, nominal).values["sensor_skew.lag"]) < 1e-4
+    late = dataclasses.replace(measured, theta=np.interp(t - 3e-3, t, measured.theta))
+    assert estimate(late, nominal).values["sensor_skew.lag"] == pytest.approx(3e-3, rel=0.05)

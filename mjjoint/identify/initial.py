@@ -62,6 +62,7 @@ EXCITED = 1e-3
 # many decades or more from the nominal arm's: rounded to its decade, as the orders are.
 LINK_DECADE = 0.5
 STIFFNESS = EFFECTS["linear_stiffness"].params[0]
+SKEW = EFFECTS["sensor_skew"].params[0]
 
 
 @dataclass(frozen=True)
@@ -166,16 +167,30 @@ def estimate(measured, arm=None) -> Estimate:
             # nominal's is for its own (the same locked-link frequency).
             values["linear_stiffness.k1"] = STIFFNESS.initial * link_inertia / arm.link_inertia
     offset = 0.0
-    if geared and "linear_stiffness.k1" in values:
+    if geared and (m.tau is not None or "inertia.motor" in values):
         if m.tau is not None:
             torque, where = smooth(m.tau), slice(None)
-        else:  # the gear torque the motor's equation leaves, where the motor slides
-            torque = m.gear_ratio * (smooth(u) + values["input_offset.offset"] - values.get("inertia.motor", 0.0) * a
-                                     - values.get("coulomb_friction.fc", 0.0) * np.sign(v)
-                                     - values.get("viscous_friction.sigma", 0.0) * v)
+        else:  # what the input leaves past the rotor's inertia, where the motor slides (the friction's
+            # side is not known: taken as the gear's, as a robot joint's mostly is)
+            torque = m.gear_ratio * (smooth(u) + values["input_offset.offset"] - values["inertia.motor"] * a)
             where = (np.abs(v) > MOVING_SHARE * speed) & ~near_reversal(v, guard)
-        offset = encoder_offset(smooth(m.delta)[where], torque[where], values["linear_stiffness.k1"])
+        delta = smooth(m.delta)[where]
+        values.update(_encoder_lag(delta, torque[where], rate(smooth(m.theta))[where]))
+        if "linear_stiffness.k1" in values:
+            offset = encoder_offset(delta, torque[where], values["linear_stiffness.k1"])
     return Estimate(force, speed, values, resonance, offset)
+
+
+def _encoder_lag(delta: np.ndarray, torque: np.ndarray, link_rate: np.ndarray) -> dict[str, float]:
+    """Where the link encoder reads late by ``lag``, the measured deflection carries lag theta'
+    beside the gear's T / k: ``sensor_skew.lag`` from delta = c + lag theta' + T / k (least
+    squares, k free), where it lies in the skew's range. A start value only: friction on the
+    rotor, which the gear does not carry, moves T by a term in theta' too."""
+    cols = np.column_stack([np.ones_like(delta), link_rate, torque])
+    norms = np.linalg.norm(cols, axis=0)
+    norms[norms == 0] = 1.0
+    lag = float(np.linalg.lstsq(cols / norms, delta, rcond=None)[0][1] / norms[1])
+    return {"sensor_skew.lag": lag} if abs(lag) < SKEW.hi else {}
 
 
 def encoder_offset(delta: np.ndarray, torque: np.ndarray, k: float) -> float:
