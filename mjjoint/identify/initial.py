@@ -16,7 +16,11 @@ linear regressions give:
   is of that size, else evenly between the sides (``_rigid_split``);
 * gear stiffness: least squares of tau = k delta + D delta' + c with the deflection
   delta = q/N - theta where tau is measured, else from a resonance of the input-to-deflection
-  response, k = J_red (2 pi f)^2 with the two sides' reduced inertia.
+  response, k = J_red (2 pi f)^2 with the two sides' reduced inertia, else at the nominal's
+  locked-link frequency;
+* the encoders: the link encoder's lag and the deflection at zero gear torque, against the gear
+  torque T (tau, or what the input leaves past the rotor's inertia): ``_encoder_lag`` (the start
+  of ``sensor_skew``) and ``encoder_offset`` (two zeros the problem aligns before any fit).
 
 ``Estimate.param`` turns a catalogue parameter into the recording's: the catalogue values
 scaled by the decade of each order (``scales``; the lab arm's are all 1, so its fits start as
