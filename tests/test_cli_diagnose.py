@@ -332,3 +332,21 @@ def test_model_file_maps_onto_effects_that_rebuild_its_physics():
     assert (arm.segments, arm.rod_ei, arm.gravity, arm.motor_inertia, arm.hub_inertia) == \
         (model.arm.segments, model.arm.rod_ei, model.arm.gravity, model.arm.motor_inertia, model.arm.hub_inertia)
     assert set(structure.effects) <= set(EFFECTS)
+
+
+def test_fit_judges_its_model_against_the_noise_floor(fit_run, files, tmp_path, capsys):
+    """`mjjoint fit` says whether the fitted model explains the recording to its floor (the
+    model's simulated twin, as the diagnosis judges), and flags its intervals where it does not;
+    a model without the recording's physics (here its input delay, and its gear) does not."""
+    from mjjoint.diagnosis.floor import EXPLAINED_RATIO, UNEXPLAINED_INTERVALS
+    out, stdout, _ = fit_run
+    fit = json.loads((out / "fit.json").read_text())
+    floor = fit["noise_floor"]["nrmse"]
+    assert fit["explained"] is all(fit["nrmse_test"][s] <= EXPLAINED_RATIO * floor[s] for s in floor)
+    assert (UNEXPLAINED_INTERVALS in fit["warnings"]) is (not fit["explained"])
+    assert f"explained to the noise: {'yes' if fit['explained'] else 'no'}" in stdout
+    lacking = tmp_path / "lacking"
+    assert main(["fit", str(files["delayed"]), "--gear-ratio", "160", "--base", "minimal", "--window-length", "0.2",
+                 "--max-iter", "4", "--out", str(lacking)]) == 0
+    assert json.loads((lacking / "fit.json").read_text())["explained"] is False
+    assert "`mjjoint diagnose` looks for what it lacks" in capsys.readouterr().out
