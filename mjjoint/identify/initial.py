@@ -66,6 +66,9 @@ EXCITED = 1e-3
 # many decades or more from the nominal arm's: rounded to its decade, as the orders are.
 LINK_DECADE = 0.5
 STIFFNESS = EFFECTS["linear_stiffness"].params[0]
+# A gear held on one side of its play by a steady load deflects by half the play at zero torque:
+# an offset is taken for the encoders' only where its torque is this many times the recording's.
+OFFSET_TORQUES = 3.0
 SKEW = EFFECTS["sensor_skew"].params[0]
 
 
@@ -199,12 +202,13 @@ def _encoder_lag(delta: np.ndarray, torque: np.ndarray, link_rate: np.ndarray) -
 
 def encoder_offset(delta: np.ndarray, torque: np.ndarray, k: float) -> float:
     """[rad] The deflection q/N - theta at zero gear torque, median(delta - T/k), where the torque
-    it would take, k |delta_0|, exceeds every torque the gear carries in the recording (its robust
-    amplitude): no deflection then, but two encoders counting from different zeros. 0 otherwise."""
+    it would take, k |delta_0|, exceeds OFFSET_TORQUES times every torque the gear carries in the
+    recording (its robust amplitude): no deflection then, but two encoders counting from
+    different zeros. 0 otherwise."""
     if len(delta) < 10:
         return 0.0
     offset = float(np.median(delta - torque / k))
-    return offset if k * abs(offset) > amplitude(torque) else 0.0
+    return offset if k * abs(offset) > OFFSET_TORQUES * amplitude(torque) else 0.0
 
 
 def _link_start(arm, tau: np.ndarray, theta: np.ndarray, w: np.ndarray, a: np.ndarray, guard: int) -> dict[str, float]:
