@@ -11,8 +11,8 @@ in the one-line ``ValueError`` messages (``gear_ratio`` or ``--gear-ratio``).
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
 import dataclasses
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
