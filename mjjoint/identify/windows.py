@@ -301,7 +301,8 @@ class Predictor:
                                 measured.joins)
         if len(starts) < 8:
             raise ValueError(f"recording of {measured.t[-1] - measured.t[0]:.2f} s is too short for "
-                             f"{design.length} s windows (need at least 8 windows)")
+                             f"{design.length} s windows: it holds {len(starts)} whole ones past the start's "
+                             "derivative stencil, at least 8 are needed (record longer, or --window-length)")
         self.starts = starts
         self.samples = starts[:, None] + np.arange(n)[None, :]  # recording sample of each window sample
         # The samples each window is the first to cover: a moved start's warmup repeats the end
