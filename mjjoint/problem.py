@@ -269,6 +269,9 @@ def _drive_problem(recording, inputs: Inputs, say) -> Problem:
     recs = [_read(r, inputs, 1.0, inputs.k_m) for r in _each(recording)]
     if not all(isinstance(rec, Recording) for rec in recs):
         raise ValueError(f"{say('plant')} {inputs.plant} takes single-joint recordings")
+    if any(rec.tau is not None for rec in recs):
+        raise ValueError(f"{say('plant')} {inputs.plant}: a direct drive has no gear, so no transmission torque: "
+                         "leave the tau column out")
     notes: list[str] = []
     measured = _stacked(recording, recs, 1.0, notes, output=False)
     base = drive_structure(effects, PLANTS[inputs.plant], measured)

@@ -95,3 +95,14 @@ def test_a_direct_drive_with_its_input_flipped_is_named(trace, tmp_path, capsys)
     assert main(["fit", str(rec), "--plant", "rotary", "--max-iter", "1", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "the input u gives back" in err[0] and "--scales u=-1" in err[0]
+
+
+def test_a_direct_drive_with_a_torque_column_is_refused_in_one_line(trace, tmp_path, capsys):
+    """A drive has no gear: a tau column was taken as one and its power balance refused the
+    recording for a sign ("u - tau/N gives back 35 %")."""
+    from mjjoint.cli import main
+    rec = tmp_path / "drive.csv"
+    write_recording(rec, Recording(t=trace.t, u=trace.u, q=trace.q, theta=trace.q, tau=trace.tau))
+    assert main(["fit", str(rec), "--plant", "rotary", "--max-iter", "1", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no transmission torque: leave the tau column out" in err[0]
