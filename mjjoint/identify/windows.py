@@ -95,8 +95,11 @@ class WindowDesign:
     lead: float = 1.0          # [s] longest lead-in of a window that starts at rest (Predictor._start_states)
 
     def __post_init__(self) -> None:
-        if not 0 < self.warmup < self.length:
-            raise ValueError(f"warmup={self.warmup} must lie in (0, length={self.length})")
+        if not self.warmup > 0:
+            raise ValueError(f"warmup={self.warmup} must be positive")
+        if not self.length > self.warmup:
+            raise ValueError(f"window length={self.length} s must exceed its warm-up of {self.warmup} s, "
+                             "excluded from the cost at each start (--window-length)")
         if not 0 <= self.lead <= MAX_LEAD:
             raise ValueError(f"lead={self.lead} must lie in [0, {MAX_LEAD:g}] s")
 
