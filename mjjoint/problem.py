@@ -202,8 +202,8 @@ def _stacked(recording, recs: list, gear_ratio: float, notes: list[str], output:
 
 
 def _check_conventions(measured: Measured, source: str) -> None:
-    """Refuse, in one line, a geared joint whose angles or torques are not read as the model
-    takes them (``recordings.consistency``)."""
+    """Refuse, in one line, a recording whose motor does not move, whose sensor recorded nothing,
+    or whose angles or torques are not read as the model takes them (``recordings.consistency``)."""
     m = measured
     problem = motion_problem(m.q)
     if problem is None and m.theta is not None:

@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     with FitProgress(args.max_iter) as progress:
         result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress,
                      restarts=args.restarts)
-    result, floor, explained = judged(problem.predictor, result)
+    result, floor, _ = judged(problem.predictor, result)
     seconds = time.perf_counter() - start
 
     from ..report.build import write_fit
@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     run = {**run_info("fit", args, problem), "seconds": round(seconds, 3),
            "rollouts_full_length": round(result.rollouts, 1)}
     with out.staged() as folder:
-        data = write_fit(folder, problem.predictor, result, problem.base, problem.source, run, floor, explained)
+        data = write_fit(folder, problem.predictor, result, problem.base, problem.source, run, floor)
     st = result.structure
     print(f"fitted {', '.join(st.effects) or 'the minimal model'} to {problem.source} "
           f"({result.iterations} iterations, {result.rollouts:.0f} full-length rollouts, {seconds:.1f} s, "
@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     print(parameter_table(st.values, result.intervals, result.warnings, st.describe()["units"]))
     print("held-out NRMSE per signal (noise floor: the fitted model's simulated twin):")
     print("\n".join(judged_lines(data, result.nrmse_test)))
-    if not explained:
+    if not data["explained"]:
         print("the model misses the recording above the noise: `mjjoint diagnose` looks for what it lacks")
     print(f"wrote {out.path}/ (fit.json, index.html, traces.rrd, PNGs)")
     return 0

@@ -37,19 +37,18 @@ def fit_joints(args: argparse.Namespace, out, jp: JointProblems) -> int:
     from ..report.progress import FitProgress
     from ..report.summary import judged_lines, parameter_table
 
-    results, judgements = {}, {}
+    results, floors = {}, {}
     for j, problem in jp.problems.items():
         start = time.perf_counter()
         with FitProgress(args.max_iter, desc=f"fit joint {j}") as progress:
             result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress,
                          restarts=args.restarts)
-        result, floor, explained = judged(problem.predictor, result)
-        judgements[j] = (floor, explained)
+        result, floors[j], _ = judged(problem.predictor, result)
         results[j] = (result, time.perf_counter() - start)
     with out.staged() as folder:
         data = _write_each(folder, "fit", args, jp, results,
                            lambda path, p, res, run: write_fit(path, p.predictor, res, p.base, p.source, run,
-                                                               *judgements[run["joint"]]))
+                                                               floors[run["joint"]]))
         write_json(folder / "fit.json", {"joints": data})
         write_joints_index(folder, "fit", jp.source, data, None, _top_run("fit", args, jp, results))
     for j, (result, seconds) in results.items():

@@ -145,15 +145,17 @@ def estimate(measured, arm=None) -> Estimate:
     values: dict[str, float] = {}
     geared = m.theta is not None
     resonance = None
+    if geared:
+        theta, delta = smooth(m.theta), smooth(m.delta)
+        w = rate(theta)
     if not geared:
         values.update(_motor_regression(smooth(u), v, a, speed, guard))
     elif m.tau is not None:
-        values.update(_motor_regression(smooth(u) - smooth(m.tau) / m.gear_ratio, v, a, speed, guard))
-        delta = smooth(m.delta)
-        values.update(_stiffness_regression(delta, rate(delta), smooth(m.tau)))
+        tau = smooth(m.tau)
+        values.update(_motor_regression(smooth(u) - tau / m.gear_ratio, v, a, speed, guard))
+        values.update(_stiffness_regression(delta, rate(delta), tau))
         if arm is not None:
-            w = rate(smooth(m.theta))
-            values.update(_link_start(arm, smooth(m.tau), smooth(m.theta), w, rate(w), guard))
+            values.update(_link_start(arm, tau, theta, w, rate(w), guard))
     else:
         # No gear torque: the rigid joint's equation, its inertia J_m + J_l / N^2, the link's
         # gravity torque as two more columns (its zero angle unknown), taken about the mean
@@ -162,9 +164,10 @@ def estimate(measured, arm=None) -> Estimate:
         gravity = np.column_stack([np.sin(swing), np.cos(swing) - 1.0])
         values.update(_motor_regression(smooth(u), v, a, speed, guard, gravity))
         j_rigid = values.pop("inertia.motor", None)
+        link_inertia = None
         if j_rigid is not None and arm is not None:
-            values.update(_rigid_split(j_rigid, m.gear_ratio, arm))
-        link_inertia = values.pop("link", None)
+            split, link_inertia = _rigid_split(j_rigid, m.gear_ratio, arm)
+            values.update(split)
         resonance = _resonance(m.u, m.delta, m.rate)
         if resonance is not None and link_inertia is not None:
             j_red = 1.0 / (1.0 / link_inertia + 1.0 / (values["inertia.motor"] * m.gear_ratio ** 2))
@@ -176,15 +179,14 @@ def estimate(measured, arm=None) -> Estimate:
     offset = 0.0
     if geared and (m.tau is not None or "inertia.motor" in values):
         if m.tau is not None:
-            torque, where = smooth(m.tau), slice(None)
+            torque, where = tau, slice(None)
         else:  # what the input leaves past the rotor's inertia, where the motor slides (the friction's
             # side is not known: taken as the gear's, as a robot joint's mostly is)
             torque = m.gear_ratio * (smooth(u) + values["input_offset.offset"] - values["inertia.motor"] * a)
             where = (np.abs(v) > MOVING_SHARE * speed) & ~near_reversal(v, guard)
-        delta = smooth(m.delta)[where]
-        values.update(_encoder_lag(delta, torque[where], rate(smooth(m.theta))[where]))
+        values.update(_encoder_lag(delta[where], torque[where], w[where]))
         if "linear_stiffness.k1" in values:
-            offset = encoder_offset(delta, torque[where], values["linear_stiffness.k1"])
+            offset = encoder_offset(delta[where], torque[where], values["linear_stiffness.k1"])
     return Estimate(force, speed, values, resonance, offset)
 
 
@@ -247,28 +249,28 @@ def _tip_mass(arm, j_link: float) -> float | None:
     return tip if tip > 0 else None
 
 
-def _rigid_split(j_rigid: float, gear_ratio: float, arm) -> dict[str, float]:
+def _rigid_split(j_rigid: float, gear_ratio: float, arm) -> tuple[dict[str, float], float]:
     """The motor and link inertias of a joint seen only as rigid, ``j_rigid = J_m + J_l / N^2``.
 
     Below the gear's resonance the two sides move as one, so the recording fixes the sum only.
     Where the sum is within ``LINK_DECADE`` of the nominal arm's, the nominal link stays and the
     motor takes the rest. Otherwise the nominal split means nothing at this size, and both start
     at the matched split J_l = J_m N^2 (the inertia match gear ratios are chosen for); the fit
-    moves both. Returns ``inertia.motor``, the link's parameter where the link is started from
-    here, and ``link``, the link's inertia.
+    moves both. Returns (``inertia.motor`` and the link's parameter where the link is started
+    from here, the link's inertia).
     """
     reflected = arm.link_inertia / gear_ratio ** 2
     if abs(math.log10(j_rigid / (arm.motor_inertia + reflected))) < LINK_DECADE and j_rigid > reflected:
-        return {"inertia.motor": j_rigid - reflected, "link": arm.link_inertia}
+        return {"inertia.motor": j_rigid - reflected}, arm.link_inertia
     j_link = 0.5 * j_rigid * gear_ratio ** 2
-    out = {"inertia.motor": 0.5 * j_rigid, "link": j_link}
+    out = {"inertia.motor": 0.5 * j_rigid}
     if arm.link_parameter == "mass.tip":
         tip = _tip_mass(arm, j_link)
         if tip is not None:
             out["mass.tip"] = tip
     elif j_link > arm.link_inertia - arm.hub_inertia:
         out["inertia.link"] = j_link - (arm.link_inertia - arm.hub_inertia)
-    return out
+    return out, j_link
 
 
 def _positive(x: float, fallback: float) -> float:

@@ -165,7 +165,7 @@ def read_signals(
     meta = {"source": where, "format": "rosbag2" if path.is_dir() else path.suffix.lower()[1:], "columns": sources,
             "scales": factors, "k_m": k_m, "repaired": repaired,
             "unwrapped": turns or None, "resampled": merged or resampled,
-            "left_out": extra if extra and columns and not allow_extra else None}
+            "left_out": None if allow_extra or not extra else extra}
     return signals, meta
 
 

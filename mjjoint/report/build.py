@@ -80,10 +80,10 @@ def write_diagnosis(folder: Path, predictor: Predictor, diag: Diagnosis, source:
 
 
 def write_fit(folder: Path, predictor: Predictor, result: FitResult, initial: Structure, source: str,
-              run: dict, floor: Floor | None = None, explained: bool | None = None) -> dict:
-    """Every file of a fit in ``folder``, with its ``floor`` and whether it ``explained`` the
-    recording to it (``diagnosis.floor.judged``); returns the fit.json data."""
-    data = {**result.as_dict(), **({} if floor is None else {"noise_floor": floor.as_dict(), "explained": explained})}
+              run: dict, floor: Floor) -> dict:
+    """Every file of a fit in ``folder``, with the recording's ``floor`` (``diagnosis.floor.judged``)
+    and whether the fit explains the recording to it; returns the fit.json data."""
+    data = {**result.as_dict(), "noise_floor": floor.as_dict(), "explained": floor.explained(result.nrmse_test)}
     files = [write_json(folder / "fit.json", data), *write_model(folder, result.structure, predictor.m)]
     cmp = compare(predictor, {"initial": initial, "fitted": result.structure})
     signal = worst_signal(result.nrmse_test, predictor.signals)
