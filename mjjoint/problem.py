@@ -11,6 +11,7 @@ in the one-line ``ValueError`` messages (``gear_ratio`` or ``--gear-ratio``).
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,14 +22,14 @@ from .assets.plant import input_range
 from .assets.serial_file import SerialArmFile, read_model_file
 from .identify.effects import SEED_EFFECTS, check_effects, plant_effects
 from .identify.from_model import structure_from_model
-from .identify.initial import estimate
+from .identify.initial import Estimate, estimate
 from .identify.structure import Structure
 from .identify.windows import Measured, Predictor, WindowDesign
 from .manipulator import arm_model, arm_predictor, load_note
 from .modelfile import ModelFile
 from .params import fitting_timestep
 from .recordings import MultiRecording, Recording, read_recording, reading_notes
-from .recordings.consistency import gear_sides_problem, torque_sign_problem
+from .recordings.consistency import dead_sensor_problem, gear_sides_problem, motion_problem, torque_sign_problem
 
 PLANTS = {"arm": "", "linear": "slide", "rotary": "hinge"}  # plant -> direct drive joint type ("": the arm)
 
@@ -129,14 +130,27 @@ def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[R
     if len(recs) == 1 and not isinstance(recs[0], Recording):
         return _joint_problems(recording, inputs, model, say, recs[0])
     measured = _stacked(recording, recs, base.gear_ratio, notes)
+    measured, start, more = _aligned(measured, base.nominal)
+    notes += more
     predictor = make_predictor(measured, inputs, say)
-    return Problem(_source(recording), predictor, _started(base, measured, model is not None), notes)
+    return Problem(_source(recording), predictor, _started(base, measured, start, model is not None), notes)
 
 
-def _started(base: Structure, measured: Measured, from_model: bool) -> Structure:
-    """``base`` with ranges and initial values from the recording (``identify.initial``); a
-    model file's values are the user's and stay."""
-    start = estimate(measured, base.nominal.link_inertia, base.nominal)
+def _aligned(measured: Measured, nominal) -> tuple[Measured, Estimate, list[str]]:
+    """The recording's estimate (``identify.initial``), and the recording with its link encoder
+    counted from the motor's zero where the two differ (``initial.encoder_offset``), with a note."""
+    start = estimate(measured, nominal)
+    offset = start.theta_offset
+    if not offset:
+        return measured, start, []
+    note = (f"the link encoder counts from another zero than the motor's: the deflection q/N - theta reads "
+            f"{offset:.4g} rad at zero gear torque, more than any torque recorded explains; theta taken {offset:+.4g} rad")
+    return dataclasses.replace(measured, theta=measured.theta + offset), start, [note]
+
+
+def _started(base: Structure, measured: Measured, start: Estimate, from_model: bool) -> Structure:
+    """``base`` with ranges and initial values from the recording (``start``: its ``identify.initial``
+    estimate); a model file's values are the user's and stay."""
     stepped = base.at_timestep(fitting_timestep(measured.rate, base.nominal.timestep))
     started = stepped.started(start, keep=tuple(base.values) if from_model else ())
     try:
@@ -188,12 +202,17 @@ def _stacked(recording, recs: list, gear_ratio: float, notes: list[str], output:
 
 
 def _check_conventions(measured: Measured, source: str) -> None:
-    """Refuse, in one line, a geared joint whose angles or torques are not read as the model
-    takes them (``recordings.consistency``)."""
+    """Refuse, in one line, a recording whose motor does not move, whose sensor recorded nothing,
+    or whose angles or torques are not read as the model takes them (``recordings.consistency``)."""
     m = measured
-    problem = None if m.theta is None else gear_sides_problem(m.q, m.theta, m.gear_ratio)
+    problem = motion_problem(m.q)
+    if problem is None and m.theta is not None:
+        problem = dead_sensor_problem("theta", m.theta) or gear_sides_problem(m.q, m.theta, m.gear_ratio)
     if problem is None and m.tau is not None:
-        problem = torque_sign_problem(m.u, m.q, m.theta, m.tau, m.gear_ratio, m.rate)
+        problem = dead_sensor_problem("tau", m.tau) or torque_sign_problem(m.u, m.q, m.theta, m.tau, m.gear_ratio,
+                                                                           m.rate)
+    elif problem is None and m.theta is None:  # a direct drive: u alone works on the rotor
+        problem = torque_sign_problem(m.u, m.q, None, None, 1.0, m.rate)
     if problem is not None:
         raise ValueError(f"{source}: {problem}")
 
@@ -250,6 +269,9 @@ def _drive_problem(recording, inputs: Inputs, say) -> Problem:
     recs = [_read(r, inputs, 1.0, inputs.k_m) for r in _each(recording)]
     if not all(isinstance(rec, Recording) for rec in recs):
         raise ValueError(f"{say('plant')} {inputs.plant} takes single-joint recordings")
+    if any(rec.tau is not None for rec in recs):
+        raise ValueError(f"{say('plant')} {inputs.plant}: a direct drive has no gear, so no transmission torque: "
+                         "leave the tau column out")
     notes: list[str] = []
     measured = _stacked(recording, recs, 1.0, notes, output=False)
     base = drive_structure(effects, PLANTS[inputs.plant], measured)
@@ -302,8 +324,10 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
         try:
             measured = Measured.from_recording(rec.joint(j), base.gear_ratio)
             _check_conventions(measured, "the recording")
+            measured, start, more = _aligned(measured, base.nominal)
+            notes += [(j, m) for m in more]
             predictor = make_predictor(measured, inputs, say)
-            started = _started(base, measured, model is not None)
+            started = _started(base, measured, start, model is not None)
             if arm is not None:
                 predictor = arm_predictor(measured, started, _arm_file(inputs.arm), arm, rec, j, inputs.design,
                                           inputs.fit_signals, _arm_name(inputs.arm))

@@ -31,9 +31,9 @@ def main() -> None:
                   f"{100 * (got / truth - 1):+.1f} % |")
     for k1 in (3e3, 3e4):
         measured, arm = geared_recording(k1)
-        with_tau = estimate(measured, arm.link_inertia).values["linear_stiffness.k1"]
+        with_tau = estimate(measured, arm).values["linear_stiffness.k1"]
         measured.tau = None
-        e = estimate(measured, arm.link_inertia)
+        e = estimate(measured, arm)
         print(f"| arm, tau measured | linear_stiffness.k1 | {k1:.4g} | {with_tau:.4g} | | |")
         print(f"| arm, no tau ({e.resonance:.1f} Hz) | linear_stiffness.k1 | {k1:.4g} | "
               f"{e.values['linear_stiffness.k1']:.4g} | | |")

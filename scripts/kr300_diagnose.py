@@ -33,7 +33,7 @@ from mjjoint.identify.effects import EFFECTS, check_effects
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.report.build import write_diagnosis
-from mjjoint.report.output import OutputDir, write_json
+from mjjoint.report.output import OutputDir, check_destination, write_json
 from mjjoint.report.progress import StepLog
 from mjjoint.report.summary import diagnosis_summary, params_by_name
 
@@ -206,9 +206,13 @@ def run(args) -> int:
             raise CliError(f"--{flag.replace('_', '-')} must be at least 1")
     files = [kr300.load(args.train or kr300.default_file("A")),
              kr300.load(args.validate or kr300.default_file("B"))]
+    # The root is --out (checked as a command's is); each axis's folder goes inside it, checked
+    # where the root already exists, the root made only once an axis is done.
+    check_destination(args.out, "--out")
     outs = {a: OutputDir(args.out / f"axis{a}") for a in axes}
     for out in outs.values():
-        out.check()
+        if args.out.exists():
+            out.check()
     # Alignment from the training file, all link-encoder axes together, raw torque (see kr300).
     alignment = kr300.estimate_alignment([files[0].recording(a) for a in kr300.LINK_ENCODER_AXES],
                                          with_lag=not args.no_align)
@@ -242,6 +246,7 @@ def run(args) -> int:
         run_info = {"command": "scripts/kr300_diagnose.py " + " ".join(sys.argv[1:]), "axis": axis,
                     "seconds": round(seconds, 1), "windows": len(pred_a.starts),
                     "heldout_windows": int(pred_a.holdout.sum()), "rollouts_full_length": round(diag.rollouts, 1)}
+        args.out.mkdir(parents=True, exist_ok=True)
         with outs[axis].staged() as folder:
             write_json(folder / "kr300.json", summary)
             data = write_diagnosis(folder, pred_a, diag, f"{files[0].path.name} axis {axis}", run_info)

@@ -267,6 +267,7 @@ def test_matlab_struct_matrix_and_jittered_clock_reach_the_fit(files, tmp_path, 
     (["{rec}"], "--gear-ratio"),
     (["{rec}", "--model", "{model}", "--gear-ratio", "100"], "differs"),
     (["{rec}", "--gear-ratio", "160", "--window-length", "2"], "too short"),
+    (["{rec}", "--gear-ratio", "160", "--window-length", "0.001"], "must exceed its warm-up of 0.02 s"),
     (["{rec}", "--gear-ratio", "160", "--lead-in", "-1"], "--lead-in -1 must lie in [0, 60] s"),
 ])
 def test_bad_inputs_fail_in_one_line_with_exit_2(files, tmp_path, capsys, monkeypatch, argv, message):
@@ -332,3 +333,21 @@ def test_model_file_maps_onto_effects_that_rebuild_its_physics():
     assert (arm.segments, arm.rod_ei, arm.gravity, arm.motor_inertia, arm.hub_inertia) == \
         (model.arm.segments, model.arm.rod_ei, model.arm.gravity, model.arm.motor_inertia, model.arm.hub_inertia)
     assert set(structure.effects) <= set(EFFECTS)
+
+
+def test_fit_judges_its_model_against_the_noise_floor(fit_run, files, tmp_path, capsys):
+    """`mjjoint fit` says whether the fitted model explains the recording to its floor (the
+    model's simulated twin, as the diagnosis judges), and flags its intervals where it does not;
+    a model without the recording's physics (here its input delay, and its gear) does not."""
+    from mjjoint.diagnosis.floor import EXPLAINED_RATIO, UNEXPLAINED_INTERVALS
+    out, stdout, _ = fit_run
+    fit = json.loads((out / "fit.json").read_text())
+    floor = fit["noise_floor"]["nrmse"]
+    assert fit["explained"] is all(fit["nrmse_test"][s] <= EXPLAINED_RATIO * floor[s] for s in floor)
+    assert (UNEXPLAINED_INTERVALS in fit["warnings"]) is (not fit["explained"])
+    assert f"explained to the noise: {'yes' if fit['explained'] else 'no'}" in stdout
+    lacking = tmp_path / "lacking"
+    assert main(["fit", str(files["delayed"]), "--gear-ratio", "160", "--base", "minimal", "--window-length", "0.2",
+                 "--max-iter", "4", "--out", str(lacking)]) == 0
+    assert json.loads((lacking / "fit.json").read_text())["explained"] is False
+    assert "`mjjoint diagnose` looks for what it lacks" in capsys.readouterr().out

@@ -8,7 +8,7 @@ import pytest
 
 from mjjoint.excitation import Multisine
 from mjjoint.recordings import Recording, write_recording
-from mjjoint.recordings.consistency import gear_sides_problem, torque_sign_problem
+from mjjoint.recordings.consistency import dead_sensor_problem, gear_sides_problem, motion_problem, torque_sign_problem
 from mjjoint.sim import simulate
 
 N = 160.0  # the shipped arm's gear
@@ -56,3 +56,53 @@ def test_the_cli_refuses_a_flipped_input_in_one_line_and_takes_the_remedy(trace,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "u's sign looks opposite" in err[0] and "--scales u=-1" in err[0]
     assert main([*args, "--scales", "u=-1", "--out", str(tmp_path / "b")]) == 0
+
+
+def test_a_joint_at_rest_or_a_sensor_that_recorded_nothing_is_refused(trace):
+    """A motor that only jitters by a few encoder counts holds nothing to fit; a torque sensor or
+    link encoder that reads one value while the motor moves recorded nothing. Each was fitted
+    (intervals 0 .. 1e304, NRMSE 5e300 against a zero spread)."""
+    count = 2 * np.pi / 2 ** 15
+    jitter = count * np.round(np.random.default_rng(0).normal(0.0, 1.0, trace.q.size))
+    assert "a joint at rest" in motion_problem(jitter)
+    assert "a joint at rest" in motion_problem(np.zeros(trace.q.size))
+    assert motion_problem(trace.q) is None
+    assert "recorded nothing" in dead_sensor_problem("tau", np.zeros(trace.q.size))
+    assert "--plant rotary" in dead_sensor_problem("theta", np.full(trace.q.size, 0.3))
+    assert dead_sensor_problem("theta", trace.theta) is None
+
+
+@pytest.mark.parametrize("signal", ["q", "theta", "tau"])
+def test_the_cli_refuses_a_flat_signal_in_one_line(trace, tmp_path, capsys, signal):
+    from mjjoint.cli import main
+    rec = tmp_path / "rec.csv"
+    cols = dict(t=trace.t, u=trace.u, q=trace.q, theta=trace.theta, tau=trace.tau)
+    cols[signal] = np.zeros_like(cols[signal])
+    write_recording(rec, Recording(**cols))
+    assert main(["fit", str(rec), "--gear-ratio", "160", "--max-iter", "1", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and (f"{signal} is 0 throughout" in err[0] or "a joint at rest" in err[0])
+
+
+def test_a_direct_drive_with_its_input_flipped_is_named(trace, tmp_path, capsys):
+    """A drive has no tau: u alone works on the rotor, and its model has no gravity to give work
+    back either. Flipped, u was fitted (inertia on its bound, held-out q NRMSE 2.5)."""
+    assert torque_sign_problem(trace.u, trace.q, None, None, 1.0, 1000.0) is None
+    assert "--scales u=-1" in torque_sign_problem(-trace.u, trace.q, None, None, 1.0, 1000.0)
+    from mjjoint.cli import main
+    rec = tmp_path / "drive.csv"
+    write_recording(rec, Recording(t=trace.t, u=-trace.u, q=trace.q, theta=trace.q))
+    assert main(["fit", str(rec), "--plant", "rotary", "--max-iter", "1", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the input u gives back" in err[0] and "--scales u=-1" in err[0]
+
+
+def test_a_direct_drive_with_a_torque_column_is_refused_in_one_line(trace, tmp_path, capsys):
+    """A drive has no gear: a tau column was taken as one and its power balance refused the
+    recording for a sign ("u - tau/N gives back 35 %")."""
+    from mjjoint.cli import main
+    rec = tmp_path / "drive.csv"
+    write_recording(rec, Recording(t=trace.t, u=trace.u, q=trace.q, theta=trace.q, tau=trace.tau))
+    assert main(["fit", str(rec), "--plant", "rotary", "--max-iter", "1", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no transmission torque: leave the tau column out" in err[0]

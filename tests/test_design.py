@@ -10,6 +10,8 @@ slow, the CLI end to end and the acceptance benchmark.
 """
 from __future__ import annotations
 
+import math
+
 import json
 
 import numpy as np
@@ -90,7 +92,9 @@ def test_the_criterion_is_zero_between_identical_rivals_and_scales_as_one_over_n
 
 def test_design_cli_refuses_bad_input_in_one_line(tmp_path, capsys):
     rec = tmp_path / "rec.csv"
-    rec.write_text("t,u,q,theta\n" + "".join(f"{k / 1000},0,0,0\n" for k in range(3000)))
+    # a joint that moves (one at rest is refused before the options are looked at)
+    rec.write_text("t,u,q,theta\n" + "".join(f"{k / 1000},{0.1 * math.sin(k / 159)},{10 * math.sin(k / 159)},"
+                                              f"{math.sin(k / 159) / 16}\n" for k in range(3000)))
     cases = [(["--rivals", "backlash"], "exactly two"),
              (["--rivals", "backlash,nonsense"], "unknown effect 'nonsense'"),
              (["--rivals", "backlash,transmission_hysteresis", "--max-torque", "-1"], "max_torque=-1"),

@@ -7,9 +7,11 @@ import json
 
 import pytest
 
+from mjjoint.assets import ArmSpec
 from mjjoint.assets.drive import DriveSpec
+from mjjoint.excitation import Chirp
 from mjjoint.experiments.servo import LARGE, SMALL, geared_recording, servo_recording
-from mjjoint.identify.initial import DECADES, estimate
+from mjjoint.identify.initial import DECADES, STIFFNESS, estimate
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured
 from mjjoint.joint import JointParams
@@ -52,16 +54,39 @@ def test_fit_plant_rotary_recovers_motors_decades_apart_with_no_scales(case, tmp
 @pytest.mark.parametrize("k1", [3e3, 3e4])
 def test_the_estimator_recovers_the_gear_stiffness_from_the_torque_and_the_resonance(k1):
     measured, arm = geared_recording(k1)
-    e = estimate(measured, arm.link_inertia)
+    e = estimate(measured, arm)
     assert e.values["linear_stiffness.k1"] == pytest.approx(k1, rel=0.05)
     assert e.values["inertia.motor"] == pytest.approx(arm.motor_inertia, rel=0.05)
     assert e.values["coulomb_friction.fc"] == pytest.approx(0.05, rel=0.05)
     assert e.values["viscous_friction.sigma"] == pytest.approx(2e-4, rel=0.25)
     # Without the torque sensor: the resonance of the input-to-deflection response.
     untorqued = dataclasses.replace(measured, tau=None)
-    e = estimate(untorqued, arm.link_inertia)
+    e = estimate(untorqued, arm)
     assert e.resonance is not None
     assert e.values["linear_stiffness.k1"] == pytest.approx(k1, rel=0.25)
+
+
+def test_without_the_torque_sensor_a_heavy_links_rigid_inertia_is_split_between_the_sides():
+    """A link 440x the nominal's, driven below its gear's modes, and no tau: the recording fixes
+    only the sum J_m + J_l/N^2. The start keeps the sum and splits it evenly, so the side that
+    carries most of it (the link) starts within a factor 2 (the nominal link, kept as it was,
+    started it 440x light, on a gear 300x too soft for it); a link of the nominal's size keeps
+    the nominal split."""
+    n = 160.0
+    slow = Chirp(amplitude=3.0, f_start=5.0)  # below the anti-resonance: the joint moves as one
+    measured, arm = geared_recording(3e6, tau=False, tip_mass=500.0, chirp=slow)
+    nominal = ArmSpec(segments=0, gravity=0.0)
+    v = estimate(measured, nominal).values
+    link = nominal.link_inertia + (v["mass.tip"] - nominal.tip_mass) * nominal.rod_length ** 2
+    truth = arm.motor_inertia + arm.link_inertia / n ** 2
+    assert v["inertia.motor"] + link / n ** 2 == pytest.approx(truth, rel=0.05)
+    assert v["inertia.motor"] == pytest.approx(link / n ** 2)
+    assert 0.45 < link / arm.link_inertia < 1.05
+    # No resonance in view: the gear as stiff for this link as the nominal's for its own.
+    assert v["linear_stiffness.k1"] / link == pytest.approx(STIFFNESS.initial / nominal.link_inertia)
+    v = estimate(geared_recording(3e4, tau=False, chirp=slow)[0], nominal).values
+    assert "mass.tip" not in v
+    assert v["inertia.motor"] == pytest.approx(nominal.motor_inertia, rel=0.1)
 
 
 def test_a_fit_started_off_ends_on_a_bound_and_restarts_recover_the_truth():

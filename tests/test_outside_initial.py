@@ -24,7 +24,7 @@ def _measured(name: str, **over) -> tuple[Measured, object]:
 def test_a_big_link_starts_at_its_inertia_gravity_and_bearing_friction():
     m, plant = _measured("big_axis", backlash=0.0)   # a 20-40 kg m^2 link, the arm's is 0.18
     arm = ArmSpec(segments=0)
-    v = estimate(m, arm.link_inertia, arm).values
+    v = estimate(m, arm).values
     length = arm.rod_length
     j_link = arm.hub_inertia + arm.rod_mass * length ** 2 / 3 + v["mass.tip"] * length ** 2
     assert j_link == pytest.approx(plant.link_inertia, rel=0.05)
@@ -36,4 +36,4 @@ def test_a_big_link_starts_at_its_inertia_gravity_and_bearing_friction():
 def test_a_link_of_the_nominal_size_keeps_the_catalogue_start():
     m, _ = _measured("control")
     arm = ArmSpec(segments=0)
-    assert not {"mass.tip", "gravity.g", "load_friction.fc"} & set(estimate(m, arm.link_inertia, arm).values)
+    assert not {"mass.tip", "gravity.g", "load_friction.fc"} & set(estimate(m, arm).values)

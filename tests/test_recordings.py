@@ -272,6 +272,19 @@ def test_uniform_recording_is_left_as_recorded(tmp_path: Path) -> None:
     np.testing.assert_array_equal(rec.t, t)
 
 
+def test_unix_time_stamps_are_a_uniform_clock(tmp_path: Path) -> None:
+    """Unix time (1.7e9 s) is stored to 2.4e-7 s: a uniform 1 kHz clock there steps unevenly by
+    that much, which is the storage, not jitter to resample (it was, with a note of it)."""
+    path = tmp_path / "unix.csv"
+    t = 1.7e9 + np.arange(N) * DT
+    k = np.arange(N) * DT
+    path.write_text(csv_text("t,u,q,theta,tau", [[repr(float(a)), np.sin(b), b, b / 160, 0.1 * b] for a, b in zip(t, k)]))
+    rec = read_recording(path)
+    assert np.ptp(np.diff(rec.t)) > 1e-7  # the stored steps are uneven
+    assert rec.meta["resampled"] is None
+    np.testing.assert_array_equal(rec.t, t)
+
+
 @pytest.mark.parametrize(
     ("step", "timestep", "tolerance", "expected"),
     [
@@ -419,6 +432,14 @@ def test_parse_column_map_and_scales() -> None:
     assert parse_column_map("t=time,u=vir,q=qm,theta=qm") == {"t": "time", "u": "vir", "q": "qm", "theta": "qm"}
     assert parse_scales("q=deg, theta=DEG, u=2.5, t=1e-3") == {"q": DEG, "theta": DEG, "u": 2.5, "t": 1e-3}
     assert parse_scales("theta2=deg") == {"theta2": DEG}
+
+
+def test_the_api_takes_the_scales_the_command_line_does(tmp_path) -> None:
+    """``read_recording(scales={"theta": "deg"})``: the word the option documents, not only a number."""
+    rec = make_recording()
+    path = tmp_path / "rec.npz"
+    np.savez(path, t=rec.t, u=rec.u, q=rec.q, theta=np.degrees(rec.theta))
+    assert np.allclose(read_recording(path, scales={"theta": "deg"}).theta, rec.theta)
 
 
 @pytest.mark.parametrize(
@@ -638,6 +659,10 @@ def test_accepted_oddities(tmp_path: Path) -> None:
     rec = read_recording(path, allow_extra=True)
     np.testing.assert_allclose(rec.t, times[0] + np.arange(rec.n) * DT, rtol=0, atol=1e-15)
     assert rec.meta["resampled"]["method"] == "linear interpolation"
+    # Naming the columns to use leaves the others out, and says so.
+    picked = read_recording(path, columns={"t": "t", "u": "u", "q": "q", "theta": "theta"})
+    np.testing.assert_array_equal(picked.q, rec.q)
+    assert any("left out: 'status'" in note for note in reading_notes(picked.meta))
 
 
 def test_mapped_column_missing_from_csv(tmp_path: Path) -> None:

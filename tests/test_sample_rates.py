@@ -46,3 +46,19 @@ def test_a_recording_at_a_rate_the_model_rate_is_no_multiple_of_is_fitted(rate):
                                                        "transmission_damping"))
     assert result.structure.values["linear_stiffness.k1"] == pytest.approx(k1, rel=0.02)
     assert max(result.nrmse_test.values()) < 0.05, result.nrmse_test
+
+
+def test_a_slow_recording_is_fitted_below_its_nyquist_frequency():
+    """At 100 Hz the initial estimate's 50 Hz low-pass sat on the Nyquist frequency and the fit
+    stopped with scipy's "critical frequencies must be 0 < Wn < 1"; the chirp stays below it."""
+    rate = 100.0
+    arm = ArmSpec(segments=0, gravity=0.0, timestep=fitting_timestep(rate, SHIPPED))
+    joint = JointParams(friction=StaticFriction(fc=0.05, fs=0.05, sigma=2e-4), load_friction=None,
+                        transmission=Transmission(gear_ratio=160.0, k1=3e4, k3=0.0, damping=1.0, hysteresis=None))
+    trace = simulate(Chirp(f_start=10.0).sample(rate, 8), arm=arm, joint=joint, sample_rate=rate)
+    rec = Recording(t=trace.t, u=trace.u, q=trace.q, theta=trace.theta, tau=trace.tau)
+    values = mjjoint.fit(rec, gear_ratio=160.0, base=("coulomb_friction", "viscous_friction", "linear_stiffness",
+                                                       "transmission_damping")).structure.values
+    assert values["inertia.motor"] == pytest.approx(arm.motor_inertia, rel=0.05)
+    assert values["coulomb_friction.fc"] == pytest.approx(0.05, rel=0.1)
+    assert values["linear_stiffness.k1"] == pytest.approx(3e4, rel=0.1)

@@ -52,6 +52,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..diagnosis.floor import judged
     from ..identify.fit import fit
     from ..report.progress import FitProgress
 
@@ -67,20 +68,23 @@ def run(args: argparse.Namespace) -> int:
     with FitProgress(args.max_iter) as progress:
         result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress,
                      restarts=args.restarts)
+    result, floor, _ = judged(problem.predictor, result)
     seconds = time.perf_counter() - start
 
     from ..report.build import write_fit
-    from ..report.summary import nrmse_lines, parameter_table
+    from ..report.summary import judged_lines, parameter_table
     run = {**run_info("fit", args, problem), "seconds": round(seconds, 3),
            "rollouts_full_length": round(result.rollouts, 1)}
     with out.staged() as folder:
-        write_fit(folder, problem.predictor, result, problem.base, problem.source, run)
+        data = write_fit(folder, problem.predictor, result, problem.base, problem.source, run, floor)
     st = result.structure
     print(f"fitted {', '.join(st.effects) or 'the minimal model'} to {problem.source} "
           f"({result.iterations} iterations, {result.rollouts:.0f} full-length rollouts, {seconds:.1f} s, "
           f"best of {result.starts} start{'s' if result.starts > 1 else ''})")
     print(parameter_table(st.values, result.intervals, result.warnings, st.describe()["units"]))
-    print("held-out NRMSE per signal:")
-    print("\n".join(nrmse_lines(result.nrmse_test)))
+    print("held-out NRMSE per signal (noise floor: the fitted model's simulated twin):")
+    print("\n".join(judged_lines(data, result.nrmse_test)))
+    if not data["explained"]:
+        print("the model misses the recording above the noise: `mjjoint diagnose` looks for what it lacks")
     print(f"wrote {out.path}/ (fit.json, index.html, traces.rrd, PNGs)")
     return 0

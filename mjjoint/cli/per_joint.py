@@ -29,23 +29,26 @@ LOADED = ("the other joints' inertia, Coriolis and gravity forces on each joint 
 
 def fit_joints(args: argparse.Namespace, out, jp: JointProblems) -> int:
     """``mjjoint fit`` on each selected joint; DIR/joint{j}/ plus a top-level fit.json and index."""
+    from ..diagnosis.floor import judged
     from ..identify.fit import fit
     from ..report.build import write_fit
     from ..report.joints import write_joints_index
     from ..report.output import write_json
     from ..report.progress import FitProgress
-    from ..report.summary import nrmse_lines, parameter_table
+    from ..report.summary import judged_lines, parameter_table
 
-    results = {}
+    results, floors = {}, {}
     for j, problem in jp.problems.items():
         start = time.perf_counter()
         with FitProgress(args.max_iter, desc=f"fit joint {j}") as progress:
             result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress,
                          restarts=args.restarts)
+        result, floors[j], _ = judged(problem.predictor, result)
         results[j] = (result, time.perf_counter() - start)
     with out.staged() as folder:
         data = _write_each(folder, "fit", args, jp, results,
-                           lambda path, p, res, run: write_fit(path, p.predictor, res, p.base, p.source, run))
+                           lambda path, p, res, run: write_fit(path, p.predictor, res, p.base, p.source, run,
+                                                               floors[run["joint"]]))
         write_json(folder / "fit.json", {"joints": data})
         write_joints_index(folder, "fit", jp.source, data, None, _top_run("fit", args, jp, results))
     for j, (result, seconds) in results.items():
@@ -53,8 +56,8 @@ def fit_joints(args: argparse.Namespace, out, jp: JointProblems) -> int:
         print(f"== joint {j}: fitted {', '.join(st.effects) or 'the minimal model'} "
               f"({result.iterations} iterations, {result.rollouts:.0f} full-length rollouts, {seconds:.1f} s)")
         print(parameter_table(st.values, result.intervals, result.warnings))
-        print("held-out NRMSE per signal:")
-        print("\n".join(nrmse_lines(result.nrmse_test)))
+        print("held-out NRMSE per signal (noise floor: the fitted model's simulated twin):")
+        print("\n".join(judged_lines(data[str(j)], result.nrmse_test)))
     print(f"wrote {out.path}/ (fit.json, index.html; joint1/ ... with each joint's fit)")
     return 0
 

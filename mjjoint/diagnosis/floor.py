@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..identify.fit import FitResult
 from ..identify.structure import Structure
 from ..identify.windows import Measured, Predictor, noise_std
 from ..recordings import Recording
@@ -100,6 +101,22 @@ def sensor_noise(x: np.ndarray, rate: float, per_segment=None) -> tuple[float, f
     ``per_segment``: each stacked recording smoothed on its own (``windows.noise_std``)."""
     step = quantisation_step(x)
     return max(noise_std(x, rate, per_segment), step / np.sqrt(12.0)), step
+
+
+UNEXPLAINED_INTERVALS = ("the model misses the recording above its noise floor: its 95 % intervals assume a right "
+                         "model and understate the uncertainty")
+
+
+def judged(predictor: Predictor, result: FitResult) -> tuple[FitResult, Floor, bool]:
+    """``result`` judged against the floor of its own twin (``noise_floor``): (the result, with
+    the intervals' warning where it misses above the floor, the floor, whether it explains the
+    recording). An interval is the spread of estimates a right model would give; a model that
+    misses the recording above its floor carries the miss in its parameters, uncounted."""
+    floor = noise_floor(predictor, result.structure)
+    explained = floor.explained(result.nrmse_test)
+    if not explained:
+        result = replace(result, warnings=[*result.warnings, UNEXPLAINED_INTERVALS])
+    return result, floor, explained
 
 
 def measured_signals(m: Measured) -> dict[str, np.ndarray]:

@@ -94,7 +94,7 @@ from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .clock import Phases, ScreenClock
 from .features import operating_conditions, reversal_proximity
-from .floor import EXPLAINED_RATIO, Floor, noise_floor
+from .floor import EXPLAINED_RATIO, Floor, judged, noise_floor
 from .locate import REVERSAL_WINDOW_S, locate, located_conditions
 
 MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
@@ -452,12 +452,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             residual_location(predictor, current.structure)
     say("noise floor: the final model's simulated twin of the recording")
     with phases("noise floor"):
-        floor = noise_floor(predictor, current.structure)
-    explained = floor.explained(current.nrmse_test)
-    if not explained:
-        # An interval is the spread of estimates a right model would give; a model that misses
-        # the recording above its floor carries the miss in its parameters, uncounted.
-        current = dataclasses.replace(current, warnings=[*current.warnings, UNEXPLAINED_INTERVALS])
+        current, floor, explained = judged(predictor, current)
     bounds = stand_ins(current)
     if explained:
         unresolved = {}
@@ -473,8 +468,6 @@ def refused(revisions) -> tuple[str, ...]:
     return tuple(r.effect for r in revisions if r.kind == "stand-in")
 
 
-UNEXPLAINED_INTERVALS = ("the final model misses the recording above its noise floor: its 95 % intervals assume "
-                         "a right model and understate the uncertainty")
 def stand_ins(result: FitResult) -> dict[str, str]:
     """{parameter: "lower" | "upper"} for the parameters the fit left on a bound
     (``FitResult.on_bound``): stand-ins for something the structure lacks, not estimates."""

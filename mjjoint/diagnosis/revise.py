@@ -9,7 +9,8 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   against the model without it refitted with more freedom (every parameter free, ``fit_iter``
   iterations, then the robust loss, kept if it predicts the held-out windows better); an effect
   whose gain does not survive that, or whose own parameters end on their bounds, is a stand-in:
-  it is reported (``stand_in_effects``), not named, and not screened again.
+  it is reported (``stand_in_effects``), not named, and not screened again. A generic form, the
+  first effect too, is one where its fit cannot tell its size from none (``resolved``).
 - **Swap**: each named effect is replaced by each of its rivals (``rivals``: the effects acting
   at the same site under a shared residual condition, and the ones the step found
   indistinguishable), the rest refitted; the swap is kept when the swapped model passes the
@@ -26,11 +27,15 @@ addition was; each one is recorded (``Revision``) with the held-out costs that d
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Callable
 
+from scipy.stats import chi2
+
 from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, check_effects, plant_effects
 from ..identify.fit import FitResult, finish, fit
+from ..identify.intervals import Z95
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust, acceptance,
@@ -136,6 +141,12 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     its gain gone against the model without it refitted with more freedom, from where ``after``
     left the other parameters (the added term may only have carried them to a better optimum).
     Returns (the refusal or None, that refit of the model without it or None)."""
+    size = [p.name for p in EFFECTS[step.effect].params if not p.log and p.initial == 0.0]
+    if EFFECTS[step.effect].generic and not resolved(after, size):
+        return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
+                        f"passed the acceptance rule with a size its own fit cannot tell from none ({', '.join(size)}: "
+                        "every 95 % interval holds zero, jointly too): a generic form standing in for what the "
+                        "located residual holds"), None
     if not named:
         return None, None
     own = [p.name for p in EFFECTS[step.effect].params]
@@ -159,6 +170,18 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     return Revision("stand-in", step.effect, ref.cost_test, after.cost_test,
                     f"re-explains what {', '.join(earlier)} and the rest explain: against the model without it "
                     f"refitted from its values it fails {', '.join(failed)}"), ref
+
+
+def resolved(result: FitResult, names: list[str]) -> bool:
+    """Whether the parameters ``names`` (signed, zero for none) are jointly away from zero: their
+    Wald statistic, sum (value / se)^2 with each se from its 95 % interval, above chi^2's 95 %
+    point (the sinusoid's two amplitudes are nearly uncorrelated over many periods)."""
+    wald = 0.0
+    for name in names:
+        lo, hi = result.intervals.get(name, (-math.inf, math.inf))
+        se = (hi - lo) / (2.0 * Z95)
+        wald += (result.structure.values[name] / se) ** 2 if 0.0 < se < math.inf else 0.0
+    return wald > chi2.ppf(0.95, len(names))
 
 
 def revise(predictor: Predictor, current: FitResult, steps: list[Step], where: dict, options: DiagnoseOptions,

@@ -55,18 +55,19 @@ def servo_recording(servo: Servo, duration: float = 6.0) -> Recording:
     return Recording(t=t, u=u, q=q, theta=q)
 
 
-def geared_recording(k1: float, tau: bool = True):
+def geared_recording(k1: float, tau: bool = True, tip_mass: float = 1.0, chirp=None):
     """(Measured, ArmSpec): the shipped arm (rigid rod, no gravity, Coulomb + viscous motor
-    friction 0.05 N m and 2e-4 N m s/rad, a linear gear of stiffness ``k1``) under an 80 -> 1 Hz
-    chirp (through the gear's resonance), noise-free; ``tau=False`` drops the torque sensor."""
+    friction 0.05 N m and 2e-4 N m s/rad, a linear gear of stiffness ``k1``, ``tip_mass`` [kg])
+    under ``chirp`` (default an 80 -> 1 Hz ``Chirp``, through the gear's resonance) for 5 s,
+    noise-free; ``tau=False`` drops the torque sensor."""
     from ..assets import ArmSpec
     from ..excitation import Chirp
     from ..identify.windows import Measured
     from ..physics.transmission import Transmission
     from ..sim import simulate
-    arm = ArmSpec(segments=0, gravity=0.0)
+    arm = ArmSpec(segments=0, gravity=0.0, tip_mass=tip_mass)
     joint = JointParams(friction=StaticFriction(fc=0.05, fs=0.05, sigma=2e-4), load_friction=None,
                         transmission=Transmission(gear_ratio=160.0, k1=k1, k3=0.0, damping=1.0, hysteresis=None))
-    trace = simulate(Chirp(f_start=80.0).sample(1000, 5), arm=arm, joint=joint)
+    trace = simulate((chirp or Chirp(f_start=80.0)).sample(1000, 5), arm=arm, joint=joint)
     rec = Recording(t=trace.t, u=trace.u, q=trace.q, theta=trace.theta, tau=trace.tau if tau else None)
     return Measured.from_recording(rec, 160.0), arm

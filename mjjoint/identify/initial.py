@@ -12,10 +12,15 @@ linear regressions give:
   equation u - tau/N = J a + Fc sgn(v) + d v - offset on the samples where the motor moves
   clearly (|v| > MOVING_SHARE of the speed order), every signal through one zero-phase
   low-pass (CUTOFF); a direct drive has no tau; a geared joint whose tau is not measured is taken as
-  rigid (inertia J_m + J_l/N^2, the nominal link's share taken off, and gravity columns);
+  rigid (inertia J_m + J_l/N^2 and gravity columns), the sum split as the nominal arm's where it
+  is of that size, else evenly between the sides (``_rigid_split``);
 * gear stiffness: least squares of tau = k delta + D delta' + c with the deflection
   delta = q/N - theta where tau is measured, else from a resonance of the input-to-deflection
-  response, k = J_red (2 pi f)^2 with the two sides' reduced inertia.
+  response, k = J_red (2 pi f)^2 with the two sides' reduced inertia, else at the nominal's
+  locked-link frequency;
+* the encoders: the link encoder's lag and the deflection at zero gear torque, against the gear
+  torque T (tau, or what the input leaves past the rotor's inertia): ``_encoder_lag`` (the start
+  of ``sensor_skew``) and ``encoder_offset`` (two zeros the problem aligns before any fit).
 
 ``Estimate.param`` turns a catalogue parameter into the recording's: the catalogue values
 scaled by the decade of each order (``scales``; the lab arm's are all 1, so its fits start as
@@ -32,7 +37,7 @@ import numpy as np
 from scipy.signal import butter, csd, filtfilt, welch
 
 from ..sim import held_controls
-from .effects import Param
+from .effects import EFFECTS, Param
 
 # The orders the catalogue's values are set for: the lab arm's, the geometric middle of its
 # recordings' amplitudes (force [N m], speed [rad/s]: 0.16 and 46 for the 5 s default chirp,
@@ -47,6 +52,7 @@ MOVING_SHARE = 0.1
 # Low-pass of the regressions' signals [Hz]: the acceleration is a second derivative of an
 # encoder angle; 50 Hz keeps a 20-bit encoder's steps at 1 kHz far below the motion.
 CUTOFF = 50.0
+CUTOFF_NYQUIST = 0.8  # at most this share of the Nyquist frequency
 # A directly estimated parameter may move this many decades either way in the fit.
 DECADES = 3.0
 # The regularised Coulomb slope's step c h the drive models are kept to: the shipped drive's
@@ -59,6 +65,11 @@ EXCITED = 1e-3
 # The link is started from the recording (``_link_start``) where its estimated inertia lies this
 # many decades or more from the nominal arm's: rounded to its decade, as the orders are.
 LINK_DECADE = 0.5
+STIFFNESS = EFFECTS["linear_stiffness"].params[0]
+# A gear held on one side of its play by a steady load deflects by half the play at zero torque:
+# an offset is taken for the encoders' only where its torque is this many times the recording's.
+OFFSET_TORQUES = 3.0
+SKEW = EFFECTS["sensor_skew"].params[0]
 
 
 @dataclass(frozen=True)
@@ -69,6 +80,7 @@ class Estimate:
     speed: float
     values: dict[str, float] = field(default_factory=dict)  # catalogue parameter name -> estimate
     resonance: float | None = None  # [Hz] of the gear, where one is visible
+    theta_offset: float = 0.0  # [rad] the link encoder's zero against the motor's (``encoder_offset``)
 
     @property
     def position(self) -> float:
@@ -107,17 +119,19 @@ def amplitude(x: np.ndarray) -> float:
     return float(np.percentile(np.abs(x - np.median(x)), AMPLITUDE_PERCENTILE))
 
 
-def estimate(measured, link_inertia: float | None = None, arm=None) -> Estimate:
+def estimate(measured, arm=None) -> Estimate:
     """The recording's orders and regression estimates (module doc).
 
-    ``measured``: a ``windows.Measured`` (theta None for a direct drive). ``link_inertia``
-    [kg m^2]: the nominal output-side inertia, for the stiffness from a resonance. ``arm``: the
-    nominal ``ArmSpec``, whose link is started from the recording where it is of another size.
+    ``measured``: a ``windows.Measured`` (theta None for a direct drive). ``arm``: the nominal
+    ``ArmSpec``, whose link is started from the recording where it is of another size (and
+    whose inertias a recording without the gear torque splits its rigid inertia by).
     """
     m = measured
     # One zero-phase low-pass for every signal, derivatives after it: the filter commutes with
     # the linear terms of each regression, so they hold between the filtered signals exactly.
-    b, a_ = butter(4, CUTOFF * 2.0 / m.rate)
+    # A slow recording keeps a cutoff below its Nyquist frequency.
+    cutoff = min(CUTOFF, CUTOFF_NYQUIST * m.rate / 2.0)
+    b, a_ = butter(4, cutoff * 2.0 / m.rate)
     smooth = lambda x: filtfilt(b, a_, np.asarray(x, float))  # noqa: E731
     rate = lambda x: np.gradient(x, 1.0 / m.rate)  # noqa: E731
     v = rate(smooth(m.q))
@@ -125,35 +139,78 @@ def estimate(measured, link_inertia: float | None = None, arm=None) -> Estimate:
     # A held sample acts over the period after it: about a sample instant, the mean of it and the
     # one before (``sim.held_controls``) is what the motion there answers to.
     u = held_controls(m.u, 1, m.u[0])
-    guard = int(round(m.rate / CUTOFF))  # the low-pass's reach: one period of its cutoff
+    guard = int(round(m.rate / cutoff))  # the low-pass's reach: one period of its cutoff
     force = _positive(amplitude(m.u), 1.0)
     speed = _positive(amplitude(v), 1.0)
     values: dict[str, float] = {}
     geared = m.theta is not None
     resonance = None
+    if geared:
+        theta, delta = smooth(m.theta), smooth(m.delta)
+        w = rate(theta)
     if not geared:
         values.update(_motor_regression(smooth(u), v, a, speed, guard))
     elif m.tau is not None:
-        values.update(_motor_regression(smooth(u) - smooth(m.tau) / m.gear_ratio, v, a, speed, guard))
-        delta = smooth(m.delta)
-        values.update(_stiffness_regression(delta, rate(delta), smooth(m.tau)))
+        tau = smooth(m.tau)
+        values.update(_motor_regression(smooth(u) - tau / m.gear_ratio, v, a, speed, guard))
+        values.update(_stiffness_regression(delta, rate(delta), tau))
         if arm is not None:
-            w = rate(smooth(m.theta))
-            values.update(_link_start(arm, smooth(m.tau), smooth(m.theta), w, rate(w), guard))
+            values.update(_link_start(arm, tau, theta, w, rate(w), guard))
     else:
         # No gear torque: the rigid joint's equation, its inertia J_m + J_l / N^2, the link's
-        # gravity torque as two more columns (its zero angle unknown).
-        gravity = np.column_stack([np.sin(m.theta), np.cos(m.theta)])
+        # gravity torque as two more columns (its zero angle unknown), taken about the mean
+        # angle: over a small swing cos(theta) is a constant, which the offset's column is.
+        swing = m.theta - np.mean(m.theta)
+        gravity = np.column_stack([np.sin(swing), np.cos(swing) - 1.0])
         values.update(_motor_regression(smooth(u), v, a, speed, guard, gravity))
         j_rigid = values.pop("inertia.motor", None)
-        j_link = None if link_inertia is None else link_inertia / m.gear_ratio ** 2
-        if j_rigid is not None and j_link is not None and j_rigid > j_link:
-            values["inertia.motor"] = j_rigid - j_link
+        link_inertia = None
+        if j_rigid is not None and arm is not None:
+            split, link_inertia = _rigid_split(j_rigid, m.gear_ratio, arm)
+            values.update(split)
         resonance = _resonance(m.u, m.delta, m.rate)
-        if resonance is not None and "inertia.motor" in values:
+        if resonance is not None and link_inertia is not None:
             j_red = 1.0 / (1.0 / link_inertia + 1.0 / (values["inertia.motor"] * m.gear_ratio ** 2))
             values["linear_stiffness.k1"] = j_red * (2.0 * math.pi * resonance) ** 2
-    return Estimate(force, speed, values, resonance)
+        elif link_inertia is not None and link_inertia != arm.link_inertia:
+            # No resonance in view: the gear starts as stiff, for the link's inertia, as the
+            # nominal's is for its own (the same locked-link frequency).
+            values["linear_stiffness.k1"] = STIFFNESS.initial * link_inertia / arm.link_inertia
+    offset = 0.0
+    if geared and (m.tau is not None or "inertia.motor" in values):
+        if m.tau is not None:
+            torque, where = tau, slice(None)
+        else:  # what the input leaves past the rotor's inertia, where the motor slides (the friction's
+            # side is not known: taken as the gear's, as a robot joint's mostly is)
+            torque = m.gear_ratio * (smooth(u) + values["input_offset.offset"] - values["inertia.motor"] * a)
+            where = (np.abs(v) > MOVING_SHARE * speed) & ~near_reversal(v, guard)
+        values.update(_encoder_lag(delta[where], torque[where], w[where]))
+        if "linear_stiffness.k1" in values:
+            offset = encoder_offset(delta[where], torque[where], values["linear_stiffness.k1"])
+    return Estimate(force, speed, values, resonance, offset)
+
+
+def _encoder_lag(delta: np.ndarray, torque: np.ndarray, link_rate: np.ndarray) -> dict[str, float]:
+    """Where the link encoder reads late by ``lag``, the measured deflection carries lag theta'
+    beside the gear's T / k: ``sensor_skew.lag`` from delta = c + lag theta' + T / k (least
+    squares, k free), where it lies in the skew's range. A start value only: friction on the
+    rotor, which the gear does not carry, moves T by a term in theta' too."""
+    cols = np.column_stack([np.ones_like(delta), link_rate, torque])
+    norms = np.linalg.norm(cols, axis=0)
+    norms[norms == 0] = 1.0
+    lag = float(np.linalg.lstsq(cols / norms, delta, rcond=None)[0][1] / norms[1])
+    return {"sensor_skew.lag": lag} if abs(lag) < SKEW.hi else {}
+
+
+def encoder_offset(delta: np.ndarray, torque: np.ndarray, k: float) -> float:
+    """[rad] The deflection q/N - theta at zero gear torque, median(delta - T/k), where the torque
+    it would take, k |delta_0|, exceeds OFFSET_TORQUES times every torque the gear carries in the
+    recording (its robust amplitude): no deflection then, but two encoders counting from
+    different zeros. 0 otherwise."""
+    if len(delta) < 10:
+        return 0.0
+    offset = float(np.median(delta - torque / k))
+    return offset if k * abs(offset) > OFFSET_TORQUES * amplitude(torque) else 0.0
 
 
 def _link_start(arm, tau: np.ndarray, theta: np.ndarray, w: np.ndarray, a: np.ndarray, guard: int) -> dict[str, float]:
@@ -174,15 +231,46 @@ def _link_start(arm, tau: np.ndarray, theta: np.ndarray, w: np.ndarray, a: np.nd
     j_link, moment, fl, dl, _ = (float(x) for x in np.linalg.lstsq(cols / norms, tau[moving], rcond=None)[0] / norms)
     if not j_link > 0 or abs(math.log10(j_link / arm.link_inertia)) < LINK_DECADE:
         return {}
-    length = arm.rod_length
-    tip = (j_link - arm.hub_inertia - arm.rod_mass * length ** 2 / 3) / length ** 2
-    if not tip > 0:
+    tip = _tip_mass(arm, j_link)
+    if tip is None:
         return {}
     out = {"mass.tip": tip}
     if moment > 0:
-        out["gravity.g"] = moment / (arm.rod_mass * length / 2 + tip * length)
+        out["gravity.g"] = moment / (arm.rod_mass * arm.rod_length / 2 + tip * arm.rod_length)
     out.update({k: v for k, v in (("load_friction.fc", fl), ("load_friction.viscous", dl)) if v > 0})
     return out
+
+
+def _tip_mass(arm, j_link: float) -> float | None:
+    """The tip mass that gives the nominal arm the link inertia ``j_link`` (None: below the
+    hub and rod alone)."""
+    length = arm.rod_length
+    tip = (j_link - arm.hub_inertia - arm.rod_mass * length ** 2 / 3) / length ** 2
+    return tip if tip > 0 else None
+
+
+def _rigid_split(j_rigid: float, gear_ratio: float, arm) -> tuple[dict[str, float], float]:
+    """The motor and link inertias of a joint seen only as rigid, ``j_rigid = J_m + J_l / N^2``.
+
+    Below the gear's resonance the two sides move as one, so the recording fixes the sum only.
+    Where the sum is within ``LINK_DECADE`` of the nominal arm's, the nominal link stays and the
+    motor takes the rest. Otherwise the nominal split means nothing at this size, and both start
+    at the matched split J_l = J_m N^2 (the inertia match gear ratios are chosen for); the fit
+    moves both. Returns (``inertia.motor`` and the link's parameter where the link is started
+    from here, the link's inertia).
+    """
+    reflected = arm.link_inertia / gear_ratio ** 2
+    if abs(math.log10(j_rigid / (arm.motor_inertia + reflected))) < LINK_DECADE and j_rigid > reflected:
+        return {"inertia.motor": j_rigid - reflected}, arm.link_inertia
+    j_link = 0.5 * j_rigid * gear_ratio ** 2
+    out = {"inertia.motor": 0.5 * j_rigid}
+    if arm.link_parameter == "mass.tip":
+        tip = _tip_mass(arm, j_link)
+        if tip is not None:
+            out["mass.tip"] = tip
+    elif j_link > arm.link_inertia - arm.hub_inertia:
+        out["inertia.link"] = j_link - (arm.link_inertia - arm.hub_inertia)
+    return out, j_link
 
 
 def _positive(x: float, fallback: float) -> float:

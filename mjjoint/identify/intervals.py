@@ -35,6 +35,7 @@ import numpy as np
 # Eigenvalues of J^T J below this share of the largest are taken as unidentifiable directions,
 # by the intervals and by the fit's step rule alike.
 EIG_FLOOR = 1e-14
+Z95 = 1.96  # a 95 % interval's half-width in standard errors
 # A parameter within this share of its range (in the optimiser's coordinate) from a bound sits
 # on it: what it stands for lies at or beyond the bound, its value is a stand-in.
 BOUND_SHARE = 1e-3
@@ -102,7 +103,7 @@ def intervals(jac, r, x, lo, hi, names, structure, jac_blocks, r_blocks):
     jac = np.asarray(jac)
     var, lam = independent_variances(jac, r)
     var = np.maximum(var, window_jackknife_variances(jac_blocks, r_blocks))
-    half = 1.96 * np.sqrt(var)
+    half = Z95 * np.sqrt(var)
     params = {p.name: p for p in structure.params}
     out, warnings, held = {}, [], np.zeros(len(names), dtype=bool)
     for j, name in enumerate(names):

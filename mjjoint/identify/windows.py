@@ -100,8 +100,11 @@ class WindowDesign:
     lead: float = 1.0          # [s] longest lead-in of a window that starts at rest (Predictor._start_states)
 
     def __post_init__(self) -> None:
-        if not 0 < self.warmup < self.length:
-            raise ValueError(f"warmup={self.warmup} must lie in (0, length={self.length})")
+        if not self.warmup > 0:
+            raise ValueError(f"warmup={self.warmup} must be positive")
+        if not self.length > self.warmup:
+            raise ValueError(f"window length={self.length} s must exceed its warm-up of {self.warmup} s, "
+                             "excluded from the cost at each start (--window-length)")
         if not 0 <= self.lead <= MAX_LEAD:
             raise ValueError(f"lead={self.lead} must lie in [0, {MAX_LEAD:g}] s")
 
@@ -306,7 +309,8 @@ class Predictor:
                                 measured.joins)
         if len(starts) < 8:
             raise ValueError(f"recording of {measured.t[-1] - measured.t[0]:.2f} s is too short for "
-                             f"{design.length} s windows (need at least 8 windows)")
+                             f"{design.length} s windows: it holds {len(starts)} whole ones past the start's "
+                             "derivative stencil, at least 8 are needed (record longer, or --window-length)")
         self.starts = starts
         self.samples = starts[:, None] + np.arange(n)[None, :]  # recording sample of each window sample
         # The samples each window is the first to cover: a moved start's warmup repeats the end

@@ -62,13 +62,13 @@ def check_column_map(columns: Mapping[str, str], option: str = "columns") -> dic
     return {k: v.strip() for k, v in columns.items()}
 
 
-def check_scales(scales: Mapping[str, float], option: str = "scales") -> dict[str, float]:
-    """Validated copy of a canonical -> multiplier mapping."""
+def check_scales(scales: Mapping[str, float | str], option: str = "scales") -> dict[str, float]:
+    """Validated copy of a canonical -> multiplier mapping; the word 'deg' means pi/180."""
     _check_keys(scales, option)
     out: dict[str, float] = {}
     for key, factor in scales.items():
         try:
-            out[key] = float(factor)
+            out[key] = DEG if isinstance(factor, str) and factor.strip().lower() == "deg" else float(factor)
         except (TypeError, ValueError):
             raise RecordingError(f"{option}: factor for {quote(key)} must be a number or 'deg', got {factor!r}") from None
         if not math.isfinite(out[key]) or out[key] == 0:
@@ -86,9 +86,7 @@ def parse_column_map(text: str) -> dict[str, str]:
 
 def parse_scales(text: str) -> dict[str, float]:
     """Parse 'q=deg,theta=deg,u=2.5' into {canonical: multiplier}; 'deg' means pi/180."""
-    pairs = dict(name_value_pairs(text, "--scales", "q=deg,theta=deg,u=2.5"))
-    # Words other than 'deg' go through float() so that check_scales names them.
-    return check_scales({k: DEG if v.lower() == "deg" else v for k, v in pairs.items()}, "--scales")
+    return check_scales(dict(name_value_pairs(text, "--scales", "q=deg,theta=deg,u=2.5")), "--scales")
 
 
 def resolve_columns(available: Sequence[str], columns: Mapping[str, str], where: str, kind: str,

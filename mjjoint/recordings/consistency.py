@@ -11,6 +11,8 @@ so it is refused with what it looks like and the remedy:
   u makes it give work back instead;
 * the sign of tau: the gear is a spring (play and hysteresis included), so tau rises with the
   deflection q/N - theta; a flipped tau falls with it.
+
+Before any of these, the motor must move: a recording of a joint at rest holds nothing to fit.
 """
 from __future__ import annotations
 
@@ -32,6 +34,35 @@ GIVES_BACK = 0.2
 # tau against the deflection: a spring's correlation is near +1 (0.84-1.0 over the benchmark
 # recordings, play and hysteresis included); this far below zero it is a flipped sign.
 SPRING_SIGN = -0.5
+# The motor moves when q spans more than this many of its smallest steps (encoder counts).
+MOVES = 10
+
+
+# What a sensor that never changes while the motor moves means, and what to do about it.
+_DEAD = {
+    "tau": "the torque sensor recorded nothing (leave the tau column out)",
+    "theta": ("the link encoder recorded nothing (without one, fit the motor alone: --plant rotary with theta "
+              "mapped to q's column), or the output was held, which fit and diagnose do not model"),
+}
+
+
+def dead_sensor_problem(signal: str, x: np.ndarray) -> str | None:
+    """What is wrong where ``signal`` (tau or theta) never changes while the motor moves (the gear
+    carries the link's inertia torque, the link follows through it), else None."""
+    if np.ptp(x) > 0:
+        return None
+    return f"{signal} is {float(x[0]):g} throughout while the motor moves: {_DEAD[signal]}"
+
+
+def motion_problem(q: np.ndarray) -> str | None:
+    """What is wrong where the motor angle does not move beyond a few encoder counts, else None."""
+    span = float(np.ptp(q))
+    steps = np.abs(np.diff(q))
+    steps = steps[steps > 1e-9 * span]  # above the rounding of arithmetic on the angles
+    if steps.size and span > MOVES * float(steps.min()):
+        return None
+    return (f"the motor angle q spans {span:.3g} rad, {'no' if not steps.size else 'under ' + str(MOVES)} "
+            "encoder steps: a joint at rest holds nothing to fit (drive it, or check the q column)")
 
 
 def gear_sides_problem(q: np.ndarray, theta: np.ndarray, gear_ratio: float) -> str | None:
@@ -62,12 +93,15 @@ def gear_sides_problem(q: np.ndarray, theta: np.ndarray, gear_ratio: float) -> s
     return f"{seen}: check --gear-ratio and the angles' units (--scales)"
 
 
-def torque_sign_problem(u: np.ndarray, q: np.ndarray, theta: np.ndarray | None, tau: np.ndarray,
+def torque_sign_problem(u: np.ndarray, q: np.ndarray, theta: np.ndarray | None, tau: np.ndarray | None,
                         gear_ratio: float, rate: float) -> str | None:
     """A one-line account where the torque left on the rotor, u - tau/N, gives work back over
     the recording (u's sign flipped) or tau falls as the gear's deflection grows (tau's sign
-    flipped), with the flip that restores it; None otherwise."""
-    if theta is not None:
+    flipped), with the flip that restores it; None otherwise. ``tau`` None: a direct drive, u
+    alone on the rotor (no gravity in its model either)."""
+    if tau is None:
+        tau = np.zeros_like(u)
+    elif theta is not None:
         r = float(np.corrcoef(tau, q / gear_ratio - theta)[0, 1])
         if r < SPRING_SIGN:
             return (f"tau falls as the gear's deflection q/N - theta grows (correlation {r:.2f}; a spring's rises): "
@@ -78,8 +112,9 @@ def torque_sign_problem(u: np.ndarray, q: np.ndarray, theta: np.ndarray | None, 
     rotor = float(np.mean((u - t) * w))
     if not (exchanged > 0 and rotor < -GIVES_BACK * exchanged):
         return None
-    seen = (f"the torque left on the rotor, u - tau/N, gives back {-rotor / exchanged:.0%} of the work the torques "
-            "exchange with it (its friction would take work out)")
+    left = "the input u" if not np.any(t) else "the torque left on the rotor, u - tau/N,"
+    seen = (f"{left} gives back {-rotor / exchanged:.0%} of the work the torques exchange with the rotor (its "
+            "friction would take work out)")
     if float(np.mean((-u - t) * w)) > 0:
         return f"{seen}: u's sign looks opposite to q's; flip it (--scales u=-1)"
     return f"{seen}: check the signs and units of u and tau"

@@ -149,14 +149,14 @@ def read_signals(
         x = x * factors.get(name, 1.0)
         signals[name] = x * k_m if k_m is not None and split_joint(name)[0] == "u" else x
     # After the lookups above, so that a mistyped mapping is reported as such, not as an unused column.
-    if table.strict and not allow_extra:
-        extra = [name for name in table.names if name not in sources.values()]
-        if extra:
-            mapped = f", and the mapped names {listing(columns.values())}" if columns else ""
-            raise RecordingError(
-                f"{where}: unknown column(s) {listing(extra)}; allowed: {ALLOWED}{mapped}; "
-                "map them with --columns or pass allow_extra=True to ignore them"
-            )
+    # Unknown names are refused (a mistyped signal name would go unnoticed), unless --columns
+    # names the columns to use: a log's other columns are then left out, with a note.
+    extra = [name for name in table.names if name not in sources.values()] if table.strict else []
+    if extra and not (allow_extra or columns):
+        raise RecordingError(
+            f"{where}: unknown column(s) {listing(extra)}; allowed: {ALLOWED}; name the columns to use with "
+            "--columns (the others are then left out) or pass allow_extra=True to ignore them"
+        )
     signals, lines, repaired = repair(signals, allow_gaps, table.lines)
     signals, turns = unwrap_angles(signals)
     check_signals(signals, Context(where, sources, lines), allow_gaps)
@@ -164,17 +164,22 @@ def read_signals(
 
     meta = {"source": where, "format": "rosbag2" if path.is_dir() else path.suffix.lower()[1:], "columns": sources,
             "scales": factors, "k_m": k_m, "repaired": repaired,
-            "unwrapped": turns or None, "resampled": merged or resampled}
+            "unwrapped": turns or None, "resampled": merged or resampled,
+            "left_out": None if allow_extra or not extra else extra}
     return signals, meta
 
 
 def reading_notes(meta: Mapping[str, Any]) -> list[str]:
     """One line for each thing reading did to the recording as recorded: rows dropped
     (``meta['repaired']``), angles unwrapped (``meta['unwrapped']``), resampling
-    (``meta['resampled']``)."""
+    (``meta['resampled']``), columns no signal was mapped to (``meta['left_out']``)."""
     return [describe(meta[key]) for key, describe in (("repaired", describe_repair), ("unwrapped", describe_unwrapped),
-                                                     ("resampled", describe_resampling))
+                                                     ("resampled", describe_resampling), ("left_out", _describe_left_out))
             if meta.get(key) is not None]
+
+
+def _describe_left_out(names) -> str:
+    return f"columns no signal is mapped to, left out: {listing(names)}"
 
 
 def _build(signals: dict[str, np.ndarray], gear_ratio: float | None, meta: dict[str, Any]) -> Recording | MultiRecording:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from ..assets import ArmSpec
 from ..assets.plant import input_range
+from ..diagnosis.floor import Floor
 from ..diagnosis.loop import Diagnosis
 from ..identify.fit import FitResult
 from ..identify.structure import Structure
@@ -79,9 +80,10 @@ def write_diagnosis(folder: Path, predictor: Predictor, diag: Diagnosis, source:
 
 
 def write_fit(folder: Path, predictor: Predictor, result: FitResult, initial: Structure, source: str,
-              run: dict) -> dict:
-    """Every file of a fit in ``folder``; returns the fit.json data."""
-    data = result.as_dict()
+              run: dict, floor: Floor) -> dict:
+    """Every file of a fit in ``folder``, with the recording's ``floor`` (``diagnosis.floor.judged``)
+    and whether the fit explains the recording to it; returns the fit.json data."""
+    data = {**result.as_dict(), "noise_floor": floor.as_dict(), "explained": floor.explained(result.nrmse_test)}
     files = [write_json(folder / "fit.json", data), *write_model(folder, result.structure, predictor.m)]
     cmp = compare(predictor, {"initial": initial, "fitted": result.structure})
     signal = worst_signal(result.nrmse_test, predictor.signals)

@@ -100,18 +100,23 @@ def diagnosis_summary(diag: dict, seconds: float) -> str:
         lines.append("revisions of the search (diagnosis.json \"revisions\"):")
         lines += [f"  - {line}" for line in revised]
     lines.append("held-out NRMSE per signal (base model -> final model; noise floor):")
-    floor = (diag.get("noise_floor") or {}).get("nrmse", {})
-    before = diag["initial_fit"]["nrmse_heldout"]
-    shown = [s for s in SIGNAL_ORDER if s in before]  # nrmse_lines' order
-    lines += [line + (f"   floor {floor[s]:.4f}" if s in floor else "")
-              for s, line in zip(shown, nrmse_lines(before, diag["final_fit"]["nrmse_heldout"]))]
-    lines.append(f"explained to the noise: {'yes' if diag.get('explained') else 'no'}")
+    lines += judged_lines(diag, diag["initial_fit"]["nrmse_heldout"], diag["final_fit"]["nrmse_heldout"])
     if diag["final_model"]["warnings"]:
         lines.append("fit warnings:")
         lines += [f"  - {w}" for w in diag["final_model"]["warnings"]]
     lines.append(f"budget: {diag['budget']['rollouts_full_length']:g} full-length rollouts, "
                  f"{seconds:.1f} s wall time")
     return "\n".join(lines)
+
+
+def judged_lines(data: dict, before: dict[str, float], after: dict[str, float] | None = None) -> list[str]:
+    """``nrmse_lines`` with each signal's noise floor, and whether the recording is explained to
+    the noise, from ``data``'s "noise_floor" and "explained" (diagnosis.json, fit.json)."""
+    floor = (data.get("noise_floor") or {}).get("nrmse", {})
+    shown = [s for s in SIGNAL_ORDER if s in before]  # nrmse_lines' order
+    lines = [line + (f"   floor {floor[s]:.4f}" if s in floor else "")
+             for s, line in zip(shown, nrmse_lines(before, after))]
+    return [*lines, f"explained to the noise: {'yes' if data.get('explained') else 'no'}"]
 
 
 def revision_lines(diag: dict) -> list[str]:
