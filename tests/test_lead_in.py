@@ -90,14 +90,12 @@ def test_a_recording_that_starts_at_rest_starts_with_the_friction_unloaded(lab):
     assert pred._motion(np.array([0]), path=True)["w"][0] == 0.0
 
 
-def test_the_lag_gain_is_recovered_with_and_without_the_lead_in(lab):
-    """Fitted from the truth with every parameter free: B within 10 % whether the resting
-    windows' 2SEP states come from a lead-in or from the history along the measured path, and
-    the held-out costs alike: the lag's drive is continuous at rest, so no unresolved chatter
-    decides its windup."""
+def test_the_lag_gain_is_recovered_with_the_lead_in(lab):
+    """Fitted from the truth with every parameter free: B within 10 % with the resting windows'
+    2SEP states from a lead-in that starts where the motor last slid. (Without it, from the
+    history along the measured path, B lands at 0.28 of the truth: a stop's motion under an
+    encoder count sets the lag's windup at rest, and the measured path does not hold it.)"""
     truth, measured = lab
-    fits = {lead: fit(Predictor(measured, WindowDesign(seed=0, lead=lead)), truth) for lead in (0.0, 1.0)}
-    for lead, f in fits.items():
-        b = f.structure.values["dynamic_friction.b"] / truth.values["dynamic_friction.b"]
-        assert abs(b - 1) < 0.1, (lead, b)
-    assert fits[1.0].cost_test == pytest.approx(fits[0.0].cost_test, rel=0.05)  # measured: 4 % lower with it
+    f = fit(Predictor(measured, WindowDesign(seed=0, lead=1.0)), truth)
+    b = f.structure.values["dynamic_friction.b"] / truth.values["dynamic_friction.b"]
+    assert abs(b - 1) < 0.1, b

@@ -83,7 +83,8 @@ def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
                    help=f"prediction horizon of each window (default {WindowDesign.length:g} s)")
     w.add_argument("--lead-in", type=float, default=WindowDesign.lead, metavar="S",
                    help="longest simulated lead-in of a window that starts at rest, for 2SEP's "
-                        f"states (default {WindowDesign.lead:g} s; 0: none)")
+                        f"states (default {WindowDesign.lead:g} s; 0: none, which leaves the lag's windup at "
+                        "rest unknown and biases its gain)")
     w.add_argument("--seed", type=int, default=0, metavar="S", help="which windows are held out (default 0)")
     w.add_argument("--fit-signals", metavar="LIST",
                    help="signals the cost scores, a comma list among q, theta (as the deflection q/N - theta), "
