@@ -37,17 +37,6 @@ def test_a_resting_start_leads_in_from_the_last_motion_within_the_cap_and_its_lo
     assert _leads(qd, [1200], joins=[1200]).tolist() == [0]
 
 
-def test_a_resting_start_leads_in_from_where_the_motor_last_slid():
-    """Below the sliding speed a stop holds motion under an encoder count that sets the lag's
-    windup at rest: the lead-in starts where the motor last slid, not where it last crept."""
-    qd = np.zeros(3000)
-    qd[:1000] = 10.0                      # sliding
-    qd[1000:1200] = 1.0                   # creeping: moving, below the sliding speed
-    band = REVERSAL_BAND * 1e-4 * RATE
-    assert lead_samples(qd, band, [2000, 1100], [], 1500).tolist() == [801, 0]
-    assert lead_samples(qd, band, [2000, 1100], [], 1500, sliding_speed=5.0).tolist() == [1001, 0]
-
-
 @pytest.fixture(scope="module")
 def lab():
     """A 10 s closed-loop lab recording of seed 0's 2SEP truth, and its true structure."""
@@ -92,7 +81,7 @@ def test_a_recording_that_starts_at_rest_starts_with_the_friction_unloaded(lab):
 
 def test_the_lag_gain_is_recovered_with_the_lead_in(lab):
     """Fitted from the truth with every parameter free: B within 10 % with the resting windows'
-    2SEP states from a lead-in that starts where the motor last slid. (Without it, from the
+    2SEP states from a lead-in that starts where the motor last moved. (Without it, from the
     history along the measured path, B lands at 0.28 of the truth: a stop's motion under an
     encoder count sets the lag's windup at rest, and the measured path does not hold it.)"""
     truth, measured = lab

@@ -56,11 +56,6 @@ VELOCITY_ORDER = 3
 # speed (716 window rollouts of a 60 s lab recording, 2 cores: 0.69 s in two chunks, 0.76 s
 # in one). Peak memory: scripts/bench_fit.py --memory.
 ROLLOUT_BUFFER = 64 * 2 ** 20
-# [rad/s] The motor speed above which 2SEP's states follow the measured path: the lag relaxes
-# within a sample there (B|w|/|S| for the catalogue's gains), and the plugin takes whole steps
-# (kernels.EVENT_SPEED Stribeck velocities). A stop below it holds motion under an encoder count
-# that sets the lag's windup at rest, so a resting window's lead-in starts where the motor slid.
-SLIDING_SPEED = 5.0
 # 2SEP's window-start states are run along the measured motor angle, with the angle's retraces
 # smaller than its measurement noise taken for none: a play operator of half-width
 # REVERSAL_BAND x the noise std (``Measured.q_path``). A resting motor's quantised encoder
@@ -683,12 +678,11 @@ class Predictor:
     @cached_property
     def lead_samples(self) -> np.ndarray:
         """Lead-in of each window [samples] (``_start_states``): back to the last sample where the
-        motor slid (faster than SLIDING_SPEED and than one play band, REVERSAL_BAND noise std,
-        per sample), at most ``design.lead`` and never across a join; 0 where the motor moves
-        (faster than one play band per sample) at the start."""
+        motor moved faster than one play band (REVERSAL_BAND noise std) per sample, at most
+        ``design.lead`` and never across a join; 0 where the motor moves at the start."""
         m = self.m
         return lead_samples(m.qd, REVERSAL_BAND * m.q_noise * m.rate, self.starts, m.joins,
-                            int(round(self.design.lead * m.rate)), SLIDING_SPEED)
+                            int(round(self.design.lead * m.rate)))
 
     @cached_property
     def _held_input(self) -> tuple[np.ndarray, np.ndarray]:
@@ -813,17 +807,14 @@ class _FlexLead:
     rows: np.ndarray
 
 
-def lead_samples(qd: np.ndarray, moving_speed: float, starts: np.ndarray, joins, cap: int,
-                 sliding_speed: float = 0.0) -> np.ndarray:
-    """Samples from the last one where |qd| exceeded ``moving_speed`` and ``sliding_speed`` to
-    each start, at most ``cap`` and not across a join; 0 for a start where the motor moves (|qd|
-    above ``moving_speed``; or ``cap`` is 0)."""
+def lead_samples(qd: np.ndarray, moving_speed: float, starts: np.ndarray, joins, cap: int) -> np.ndarray:
+    """Samples from the last one where |qd| exceeded ``moving_speed`` to each start, at most
+    ``cap`` and not across a join; 0 for a start where the motor moves (or ``cap`` is 0)."""
     starts = np.asarray(starts)
     if cap <= 0:
         return np.zeros(len(starts), int)
     moving = np.abs(qd) > moving_speed
-    slid = np.abs(qd) > max(moving_speed, sliding_speed)
-    last = np.maximum.accumulate(np.where(slid, np.arange(len(slid)), -1))
+    last = np.maximum.accumulate(np.where(moving, np.arange(len(moving)), -1))
     bounds = np.array([0, *joins])
     floor = bounds[np.searchsorted(bounds, starts, side="right") - 1]  # the join each start follows
     floor = np.maximum(floor, starts - cap)
