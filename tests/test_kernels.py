@@ -365,6 +365,11 @@ def plugin_state(s: ref.JointState, at: float = np.nan, other: float = np.nan, o
                        transmission=Transmission(backlash=0.002)),
          s=ref.JointState(x=0.001), m=(0.3, 2.0, 0.0005, -1.0), h=5e-4, hj=10.0, hjl=0.25, other=0.2,
          other_t=np.nan, other_l=0.4, trend=0.0)
+@example(p=JointParams(friction=TwoSEP(fc=1.0, fs=1.0, vs=1.0, sigma=0.0, k=1.0, b=0.0),
+                       transmission=Transmission(gear_ratio=1.0, k1=1.0, k2=0.0, k3=0.0, damping=0.0, hysteresis=None),
+                       load_friction=None),
+         s=ref.JointState(w_sign=-1.0), m=(0.0, 3.0, 0.0, 0.0), h=1.1594381854420656e-4, hj=1e-7, hjl=0.0,
+         other=np.nan, other_t=np.nan, other_l=np.nan, trend=0.0)  # a reversal substepped on a heavy rotor
 def test_joint_forces_and_advance(p, s, m, h, hj, hjl, other, other_t, other_l, trend):
     """The kernels against the reference; the link's other torques are extrapolated from the
     last two steps' (``trend`` apart)."""
@@ -381,7 +386,10 @@ def test_joint_forces_and_advance(p, s, m, h, hj, hjl, other, other_t, other_l, 
     t = p.transmission
     scale = t.k1 * 0.06 + t.k2 * 0.06 ** 2 + t.k3 * 0.06 ** 3 + 300.0
     # q/N - theta loses the bits of theta: relative to |theta| + |delta|, not to delta.
-    assert close(fm, rm, scale / n * (1 + abs(theta) / 0.05)), (fm, rm)
+    # A substepped rotor's torque lands MuJoCo's update on its end velocity, (w1 - wq) / hj: the
+    # end velocity's last bits (compiled and interpreted libm differ there) come back times 1 / hj.
+    landing = 64 * np.finfo(float).eps * (abs(wq) + 1.0) / hj if hj > 0 else 0.0
+    assert abs(fm - rm) <= landing or close(fm, rm, scale / n * (1 + abs(theta) / 0.05)), (fm, rm)
     assert close(fl, rl, scale * (1 + abs(theta) / 0.05)), (fl, rl)
     kernels.joint_advance(blk, st_arr, q, wq, theta, wtheta, h)
     want = ref.joint_advance(p, s, q, wq, theta, wtheta, h).as_list()
