@@ -45,6 +45,16 @@ def test_full_case_set(effect, tmp_path):
 
 
 @pytest.mark.slow
+def test_the_converged_lag_is_named_from_two_starts(tmp_path):
+    """Seed 0's 2SEP truth (base q NRMSE 1.12, truth 0.010): from the catalogue's lag gain alone
+    the screen ended above the base, the lag's windup holding each breakaway in another valley of
+    the cost; screened from a tenth of that gain too (``effects._lag_variants``), it is named
+    within 20 %."""
+    score = run_case("dynamic_friction", seed=0, folder=tmp_path, duration=20.0)
+    assert score.passed, score
+
+
+@pytest.mark.slow
 def test_a_stalled_refit_leaves_no_room_for_a_stand_in(tmp_path):
     """Seed 3's backlash case: the least-squares refit with the play stalls at 10x the truth's
     held-out cost, and without the robust refit (DiagnoseOptions.robust_refit) the next round

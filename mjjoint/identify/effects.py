@@ -127,6 +127,17 @@ def _delay_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
     return [({}, {})]
 
 
+# [N m/rad] 2SEP's attraction gain B, the catalogue's start (TwoSEP's default).
+LAG_GAIN = TwoSEP().b
+
+
+def _lag_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
+    """From the catalogue's lag gain and from a tenth of it: the lag winds up over each dwell and
+    holds the next breakaway until it decays, so a gain far above the truth's starts in another
+    breakaway's valley of the cost."""
+    return [({}, {}), ({"dynamic_friction.b": LAG_GAIN / 10}, {})]
+
+
 # Rayleigh's share of a uniform cantilever's mass that moves with its tip in the first mode (33/140).
 RAYLEIGH_ROD_SHARE = 33.0 / 140.0
 
@@ -189,8 +200,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
                                lambda f: f.fs > f.fc)),
     Effect("dynamic_friction", "2SEP pre-sliding hysteresis and frictional lag (Eqs. 11-14)",
            (Param("dynamic_friction.k", 1000.0, 10.0, 1e5, unit="1/rad", dim="1/position"),
-            Param("dynamic_friction.b", 50.0, 0.1, 1e4, unit="N m/rad", dim="force/position")),
-           _dynamic, requires=("coulomb_friction",),
+            Param("dynamic_friction.b", LAG_GAIN, 0.1, 1e4, unit="N m/rad", dim="force/position")),
+           _dynamic, requires=("coulomb_friction",), variants=_lag_variants,
            evidence=("reversal", "hysteresis", "lag"), acts_under="reversal", plot="motor_velocity",
            direct_drive=True, term="friction",
            read=_friction_read(lambda f: {"dynamic_friction.k": f.k, "dynamic_friction.b": f.b},
