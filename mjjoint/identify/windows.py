@@ -164,6 +164,12 @@ class Measured:
         """Measurement noise (std) of q (``noise_std``), each stacked recording smoothed on its own."""
         return noise_std(self.q, self.rate, self.per_segment)
 
+    @property
+    def moving_speed(self) -> float:
+        """[rad/s] One play band (REVERSAL_BAND noise std) per sample: below it the motor is taken
+        at rest (a window's lead-in, a resting start)."""
+        return REVERSAL_BAND * self.q_noise * self.rate
+
     @cached_property
     def q_path(self) -> np.ndarray:
         """The motor angle with retraces within its noise band removed (REVERSAL_BAND): the path
@@ -564,13 +570,13 @@ class Predictor:
     def _motion(self, i: np.ndarray, path: bool = False) -> dict[str, np.ndarray]:
         """The measured motion at samples ``i`` (``Term.steady``): with ``path``, the deflection
         of the noise-free path the histories run on, and the motor at rest where it moves by
-        less than one play band (REVERSAL_BAND noise std) per sample (``lead_samples``' test)."""
+        less than ``Measured.moving_speed``."""
         m, zero = self.m, np.zeros(len(i))
         delta = zero if m.delta is None else (m.delta_path if path else m.delta)[i]
         link = m.theta is not None
         w = m.qd[i]
         if path:  # a recording that starts within the noise band starts at rest, not sliding
-            w = np.where(np.abs(w) > REVERSAL_BAND * m.q_noise * m.rate, w, 0.0)
+            w = np.where(np.abs(w) > m.moving_speed, w, 0.0)
         return {"q": m.q[i], "w": w, "theta": m.theta[i] if link else zero,
                 "wtheta": m.thetad[i] if link else zero, "delta": delta}
 
@@ -678,10 +684,10 @@ class Predictor:
     @cached_property
     def lead_samples(self) -> np.ndarray:
         """Lead-in of each window [samples] (``_start_states``): back to the last sample where the
-        motor moved faster than one play band (REVERSAL_BAND noise std) per sample, at most
-        ``design.lead`` and never across a join; 0 where the motor moves at the start."""
+        motor moved faster than ``Measured.moving_speed``, at most ``design.lead`` and never across
+        a join; 0 where the motor moves at the start."""
         m = self.m
-        return lead_samples(m.qd, REVERSAL_BAND * m.q_noise * m.rate, self.starts, m.joins,
+        return lead_samples(m.qd, m.moving_speed, self.starts, m.joins,
                             int(round(self.design.lead * m.rate)))
 
     @cached_property
