@@ -18,7 +18,7 @@ from ..physics.jit import kernel
 from ..physics.stribeck import static_friction, static_friction_slope, static_friction_step
 from ..physics.transmission import engaged, transmission_stiffness, transmission_torque
 from ..joint import STABILITY_BUDGET
-from ..physics.twosep import reversal_step, twosep_step
+from ..physics.twosep import reversal_step, reverses, twosep_step
 from ..physics.load import bearing_friction, bearing_step
 from .layout import (ANY_SITE, AT, FO, FOL, FOL2, FOT, FP, FPL, FRICTION, FRICTION_2SEP, FRICTION_STATIC, HYSTERESIS, LOAD,
                      OMEGA, QR, SITE_TERMS, ADVANCE_TERMS, SUB, TP, TRANSMISSION, WP, WPL, WSIGN, X, Z1, Z2)
@@ -242,7 +242,7 @@ def twosep_velocity(blk, z1, z2, omega, qr, wsign, fx, gd, om, wq, h, hj):
     fm = fx - z1
     w1 = wq + implicit_dof(fm, gd, om, hj)
     c = blk[F.b] * abs(z2) if z2 * w1 > 0.0 else 0.0
-    if hj > 0.0 and w1 != 0.0 and (1.0 if w1 > 0.0 else -1.0) != wsign:
+    if hj > 0.0 and reverses(w1, wsign):
         kd = 1.0 - gd * hj
         w1, z1r = reversal_step(kd * wq + hj * (om + fm), kd + c * hj, hj, z1, omega, qr, wsign, h,
                                 blk[F.fc], blk[F.k], blk[F.asym])
@@ -257,7 +257,7 @@ def twosep_event(blk, wsign, wq, w1):
     """Whether a step from ``wq`` that would end at ``w1`` holds an event the step cannot place:
     a reversal of the motion, or the rotor below ``EVENT_SPEED`` Stribeck velocities at either
     end (sticking, breaking away: the lag and the pre-sliding spring stiff against its inertia)."""
-    if w1 != 0.0 and (1.0 if w1 > 0.0 else -1.0) != wsign:
+    if reverses(w1, wsign):
         return True
     slow = EVENT_SPEED * blk[F.vs]
     return abs(wq) < slow or abs(w1) < slow

@@ -94,6 +94,12 @@ def presliding(z1, omega, qr, wsign, w, h, fc, k, asym):
 
 
 @kernel
+def reverses(w, wsign):
+    """Whether moving at ``w`` reverses the motion last in direction ``wsign``."""
+    return w != 0.0 and (1.0 if w > 0.0 else -1.0) != wsign
+
+
+@kernel
 def reversal_step(a, kd, hj, z1, omega, qr, wsign, h, fc, k, asym):
     """The velocity w1 of a step that reverses the motion, its pre-sliding force taken at the
     step's end: kd w1 + hj (z1(w1) - z1) = a, z1(w1) what Eq. 12 gives from the reversal at w1 over
