@@ -2,6 +2,7 @@
 flexible link (identify/windows.py), which set how low that floor can be."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -69,6 +70,28 @@ def test_the_right_model_is_explained_and_a_model_missing_physics_is_not(rigid):
     lacking_nrmse = evaluate(predictor, lacking)[3]
     assert not noise_floor(predictor, lacking).explained(lacking_nrmse)
     assert max(noise_floor(predictor, lacking).ratios(lacking_nrmse).values()) > EXPLAINED_RATIO
+
+
+def test_stacked_recordings_give_a_twin_whose_windows_never_start_across_a_join(rigid):
+    # Two runs that end and start in different places: the twin's velocities taken across the
+    # join would start the window there at the jump's speed (a floor of several times the spread).
+    truth, _ = rigid
+    runs = [_recording(truth, 3.0, seed) for seed in (0, 1)]
+    runs[1] = dataclasses.replace(runs[1], q=runs[1].q + 40.0, theta=runs[1].theta + 40.0 / N)
+    stacked = Measured.stack([Measured.from_recording(r, N) for r in runs])
+    predictor = Predictor(stacked, WindowDesign(seed=1))
+    assert np.any(np.isin(predictor.starts[predictor.test], stacked.joins))  # a held-out window starts there
+    floor = noise_floor(predictor, truth)
+    single = noise_floor(_predictor(runs[0]), truth)
+    assert floor.twin and max(floor.twin.values()) < 3 * max(single.twin.values()), (floor.twin, single.twin)
+
+
+def test_a_twin_its_model_cannot_predict_sets_no_floor(rigid, monkeypatch):
+    # A floor at the signal's own spread would call any model explained.
+    truth, predictor = rigid
+    monkeypatch.setattr(Predictor, "nrmse", lambda self, pred, windows: {s: 1.2 for s in self.signals})
+    floor = noise_floor(predictor, truth)
+    assert floor.twin == {} and "could not predict its own twin" in floor.note
 
 
 def test_a_flexible_links_windows_start_with_the_rod_the_hub_drove(monkeypatch):

@@ -13,8 +13,9 @@ report (rms error over the signal's spread within the held-out windows):
   noisy samples and hidden states (pre-sliding, lag, hysteresis) cost a model that is right,
   as a share of the twin's own spread. A twin that wanders into another regime than the
   recording's (an open-loop run of a closed-loop recording that drifts off; a model far from
-  the truth) gives none (``TWIN_SPREAD``): the floor is then the noise's alone, and the
-  verdict the stricter for it;
+  the truth) gives none (``TWIN_SPREAD``), and so does a twin its model predicts no better
+  than the signal's mean (NRMSE 1 or more): the floor is then the noise's alone, and the
+  verdict the stricter for it. Stacked recordings stay apart in the twin as in the recording;
 - **resolution**: ``RESOLUTION`` of the spread, below which integration and interpolation
   differences between any two implementations of the same physics dominate.
 
@@ -158,8 +159,14 @@ def _twin_floor(predictor: Predictor, structure: Structure, noise: dict, quantum
         return np.round(x / quantum[s]) * quantum[s] if quantum[s] > 0 else x
     # A direct drive's recording has no theta: a placeholder, which from_recording ignores.
     theta = recorded("theta") if m.theta is not None else np.zeros_like(m.t)
-    rec = Recording(t=m.t, u=m.u, q=recorded("q"), theta=theta, tau=recorded("tau"))
-    twin_m = replace(Measured.from_recording(rec, m.gear_ratio, output=m.theta is not None), joins=m.joins)
+    q, tau = recorded("q"), recorded("tau")
+    # Stacked recordings stay apart: velocities taken across a join would start a window there
+    # with the jump between two recordings as its speed.
+    twin_m = Measured.stack([
+        Measured.from_recording(Recording(t=m.t[a:b], u=m.u[a:b], q=q[a:b], theta=theta[a:b],
+                                          tau=None if tau is None else tau[a:b]),
+                                m.gear_ratio, output=m.theta is not None)
+        for a, b in m.segments])
     twin = predictor.on(twin_m)
     windows = twin.test
     for s in spread:
@@ -170,6 +177,8 @@ def _twin_floor(predictor: Predictor, structure: Structure, noise: dict, quantum
             return {}, f"the final model's free run is not like the recording ({s} spreads {ratio:.2g}x as far): no twin"
     (pred,) = twin.predict([structure], windows)
     out = {s: v for s, v in twin.nrmse(pred, windows).items() if s in spread}
-    if not all(np.isfinite(v) for v in out.values()):
-        return {}, "the final model could not predict its own twin: no twin"
+    if not all(np.isfinite(v) and v < 1.0 for v in out.values()):
+        # A floor at the signal's own spread (no better than its mean) would make any model
+        # look explained.
+        return {}, "the final model could not predict its own twin (NRMSE 1 or more): no twin"
     return out, ""
