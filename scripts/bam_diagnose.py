@@ -36,11 +36,12 @@ from mjjoint.report.build import write_diagnosis
 from mjjoint.report.output import OutputDir, write_json
 
 BASE = ("coulomb_friction", "viscous_friction", "gravity")
-# What a servo with one encoder at the output can show: friction shapes, an input bias or
-# delay, cogging. Nothing that needs the gear's deflection (stiffness, hysteresis, backlash)
-# and no link flexibility (a 0.1 m arm with a compact mass).
+# What a servo with one encoder at the output can show: friction shapes (load-dependent ones
+# too: the rigid gear's spring carries the transmitted torque), an input bias or delay,
+# cogging. Nothing that needs the gear's deflection (stiffness, hysteresis, backlash) and no
+# link flexibility (a 0.1 m arm with a compact mass).
 CANDIDATES = ("stribeck_friction", "dynamic_friction", "friction_asymmetry", "load_friction",
-              "input_delay", "input_offset", "torque_ripple")
+              "load_dependent_friction", "input_delay", "input_offset", "torque_ripple")
 # BAM's Parameter bounds (bam/model.py Model.set_actuator, bam/dynamixel/actuator.py
 # XL330Actuator.initialize), for refitting its m1 and m6 to these logs.
 BAM_BOUNDS = {"kt": (0.1, 3.0), "R": (2.0, 5.0), "armature": (1e-4, 0.05), "q_offset": (-0.1, 0.1),

@@ -306,9 +306,11 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
                          if p.ripple is not None else 0.0)
     engaged_teeth = tr.backlash == 0.0 or engaged(q / n - theta, tr.backlash) != 0.0
     damping = -(tr.damping if engaged_teeth else 0.0) / n ** 2
+    # a load-dependent map: both levels raised by load_gain |T| / N
+    load = f.load_gain * abs(t) / n if isinstance(f, StaticFriction) else 0.0
     if isinstance(f, StaticFriction) and f.v_eps == 0 and hj > 0:
         # the exact sign: (1 - damping hj) w1 + hj S(w1) = (1 - damping hj) wq + hj (other + explicit)
-        args = (f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.sigma_asym)
+        args = (f.fc + load, f.fs + load, f.vs, f.shape, f.sigma, f.asym, f.sigma_asym)
         if math.isnan(other):
             other = -(explicit - steady_state(wq, *args))
         k = 1.0 - damping * hj
@@ -330,7 +332,7 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
         return explicit + damping * (w1 - wq) - fric, _link(p, t, wtheta, hjl, other_l)
     base, slope = 0.0, 0.0
     if isinstance(f, StaticFriction):
-        args = (f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps, f.sigma_asym)
+        args = (f.fc + load, f.fs + load, f.vs, f.shape, f.sigma, f.asym, f.v_eps, f.sigma_asym)
         base = static_friction(wq, *args)
         slope = max(0.0, static_friction_slope(wq, *args)) if f.v_eps > 0 else 0.0
     motor = explicit - base

@@ -74,6 +74,8 @@ def test_cli_friction_map_reports_rms_in_newton_metres(tmp_path: Path, capsys, m
 @pytest.mark.parametrize("extra, message", [
     (["--model", "x.toml"], "--model does not apply to --friction-map"),
     (["--candidates", "backlash"], "'backlash' is not a friction effect"),
+    # a friction log holds no gear torque for the friction to grow with
+    (["--candidates", "load_dependent_friction"], "'load_dependent_friction' is not a friction effect"),
 ])
 def test_cli_friction_map_refuses_what_does_not_apply(tmp_path: Path, capsys, monkeypatch, extra, message):
     monkeypatch.chdir(tmp_path)

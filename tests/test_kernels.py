@@ -57,7 +57,7 @@ def statics(draw) -> StaticFriction:
     return StaticFriction(fc=fc, fs=fs, vs=draw(finite(1e-3, 10.0)),
                           shape=draw(finite(0.1, 5.0)), sigma=draw(finite(0.0, 1e-2)),
                           asym=min(fc, fs) * draw(finite(-1.0, 1.0)), v_eps=draw(finite(1e-5, 1.0)),
-                          sigma_asym=draw(finite(-0.99, 0.99)))
+                          sigma_asym=draw(finite(-0.99, 0.99)), load_gain=draw(st.just(0.0) | finite(0.0, 0.9)))
 
 
 @st.composite

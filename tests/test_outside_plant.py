@@ -57,6 +57,20 @@ def test_steady_sliding_friction_is_the_coulomb_level_plus_viscous(friction, lev
     assert states[-1, 1] == pytest.approx(v, rel=1e-3)
 
 
+@pytest.mark.parametrize("gain", [0.0, 0.3])
+def test_steady_sliding_friction_grows_with_the_gear_torque(gain):
+    """With a load-dependent level, u = Fc + g |T| / N + sigma v + T / N at a steady speed, where
+    the gear carries the bearing's T = Fl + dl v / N."""
+    lugre = LuGre(fc=0.03, fs=0.03, vs=1.0, sigma2=1e-3)
+    plant = JointPlant(gear_ratio=50.0, motor_inertia=1e-4, link_inertia=0.05, stiffness=2000.0, damping=1.0,
+                       gravity_moment=0.0, load_coulomb=0.1, load_viscous=2.0, friction=lugre, load_dependence=gain)
+    u = 0.05
+    states = simulate(plant, np.arange(0.0, 1.5, 1e-3), lambda k, s: u, 10).states
+    n = plant.gear_ratio
+    v = (u - lugre.fc - (1 + gain) * plant.load_coulomb / n) / (lugre.sigma2 + (1 + gain) * plant.load_viscous / n ** 2)
+    assert states[-1, 1] == pytest.approx(v, rel=1e-3)
+
+
 def test_rk4_converges_at_fourth_order():
     """On smooth physics each halving of the step cuts the error ~16x (a Bouc-Wen |.| or a dead
     zone's corner lower the order locally: those converge, more slowly)."""

@@ -50,8 +50,8 @@ def run(args: argparse.Namespace, candidates: tuple[str, ...] | None) -> int:
         raise CliError("--plant does not apply to --friction-map")
     unknown = sorted(set(candidates or ()) - set(FRICTION_EFFECTS))
     if unknown:
-        raise CliError(f"--candidates: {unknown[0]!r} is not a friction effect (friction effects: "
-                       f"{', '.join(FRICTION_EFFECTS)})")
+        raise CliError(f"--candidates: {unknown[0]!r} is not a friction effect a friction log can show "
+                       f"(those: {', '.join(FRICTION_EFFECTS)})")
     out = OutputDir(args.out)
     out.check()
     log = read_logs(args)

@@ -165,10 +165,12 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     # Motor: -T/N - F + ripple.
     kind = blk[F.kind]
     sm, sl = site_torques(blk, st, q, wq, theta, wtheta) if blk[ANY_SITE] != 0.0 else (0.0, 0.0)
+    # A load-dependent static map's levels grow with the torque transmitted, taken explicitly.
+    dl = blk[F.load_gain] * abs(t) / n if kind == FRICTION_STATIC else 0.0
     if kind == FRICTION_STATIC and blk[F.v_eps] <= 0.0 and hj > 0.0:
-        fm, fric = exact_static_rotor(blk, st, -t / n + sm, -d_eng / (n * n), wq, hj)
+        fm, fric = exact_static_rotor(blk, st, -t / n + sm, -d_eng / (n * n), wq, hj, dl)
     else:
-        fm, fric = rotor(blk, st, kind, -t / n + sm, -d_eng / (n * n), wq, h, hj)
+        fm, fric = rotor(blk, st, kind, -t / n + sm, -d_eng / (n * n), wq, h, hj, dl)
     # Link: T + the link-site terms, explicit (their velocity slopes are mild at the rated step),
     # less the bearing, which sticks: taken at the step's end.
     fl = t + sl
@@ -180,12 +182,13 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
 
 
 @kernel
-def exact_static_rotor(blk, st, fx, gd, wq, hj):
+def exact_static_rotor(blk, st, fx, gd, wq, hj, dl):
     """(torque on the motor dof, friction) with the static map's exact sign (v_eps = 0), taken
     at the velocity the step ends with together with the rotor's linear slope ``gd`` (the
     engaged teeth's damping): (1 - gd hj) w1 + hj F(w1) = (1 - gd hj) wq + hj (other + fx)
-    (``stribeck.static_friction_step``); ``fx``: the joint's explicit torque on the rotor."""
-    fc, fs, vs, shape = blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape]
+    (``stribeck.static_friction_step``); ``fx``: the joint's explicit torque on the rotor,
+    ``dl``: what the load adds to both friction levels."""
+    fc, fs, vs, shape = blk[F.fc] + dl, blk[F.fs] + dl, blk[F.vs], blk[F.shape]
     sigma, asym, sigma_asym = blk[F.sigma], blk[F.asym], blk[F.sigma_asym]
     om = known_other(st, FO, fx - static_friction(wq, fc, fs, vs, shape, sigma, asym, 0.0, sigma_asym))
     k = 1.0 - gd * hj
@@ -195,12 +198,13 @@ def exact_static_rotor(blk, st, fx, gd, wq, hj):
 
 
 @kernel
-def rotor(blk, st, kind, fx, gd, wq, h, hj):
+def rotor(blk, st, kind, fx, gd, wq, h, hj, dl):
     """(torque on the motor dof, friction) with 2SEP or the regularised static map: the
     velocity slopes linearly implicit (``implicit_dof``); ``fx``: the joint's explicit torque on
     the rotor, ``gd`` its linear slope. 2SEP: ``twosep_velocity``, or over a step with an event
     (``twosep_event``) the rotor substepped (``twosep_substeps``); either way the torque applied
-    is what lands MuJoCo's update on the end velocity found."""
+    is what lands MuJoCo's update on the end velocity found. ``dl``: what the load adds to the
+    static map's levels."""
     if kind == FRICTION_2SEP:
         om = known_other(st, FO, fx - st[Z1])
         w1, fric = twosep_velocity(blk, st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], fx, gd, om, wq, h, hj)
@@ -220,9 +224,11 @@ def rotor(blk, st, kind, fx, gd, wq, h, hj):
     f0 = 0.0
     s0 = 0.0
     if kind == FRICTION_STATIC:
-        f0 = static_friction(wq, blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape], blk[F.sigma], blk[F.asym], blk[F.v_eps], blk[F.sigma_asym])
+        fc, fs = blk[F.fc] + dl, blk[F.fs] + dl
+        f0 = static_friction(wq, fc, fs, blk[F.vs], blk[F.shape], blk[F.sigma], blk[F.asym], blk[F.v_eps],
+                             blk[F.sigma_asym])
         if blk[F.v_eps] > 0.0:  # (the exact sign without a motor dof: the map at wq)
-            s0 = max(0.0, static_friction_slope(wq, blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape], blk[F.sigma],
+            s0 = max(0.0, static_friction_slope(wq, fc, fs, blk[F.vs], blk[F.shape], blk[F.sigma],
                                                 blk[F.asym], blk[F.v_eps], blk[F.sigma_asym]))
     fm = fx - f0
     gm = gd - s0

@@ -88,7 +88,7 @@ import numpy as np
 from scipy.stats import wilcoxon
 
 from ..assets.stability import check_model_stability, stable_timesteps
-from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, plant_effects
+from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, incompatible, plant_effects
 from ..identify.fit import FitResult, check_intervals, finish, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
@@ -297,7 +297,8 @@ def candidates_for(structure: Structure, allowed=None) -> list[str]:
     out = []
     for e in names:
         missing = [r for r in EFFECTS[e].requires if r not in structure.effects]
-        if e not in structure.effects and all(r in possible for r in missing):
+        if (e not in structure.effects and all(r in possible for r in missing)
+                and not any(incompatible(e, x) for x in structure.effects)):
             out.append(BUNDLE.join([*missing, e]))
     return out
 

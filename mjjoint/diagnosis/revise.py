@@ -33,7 +33,8 @@ from typing import Callable
 
 from scipy.stats import chi2
 
-from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, check_effects, plant_effects
+from ..identify.effects import (EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, check_effects, incompatible,
+                                plant_effects)
 from ..identify.fit import FitResult, finish, fit
 from ..identify.intervals import Z95
 from ..identify.structure import Structure
@@ -110,7 +111,7 @@ def rivals(step: Step, structure: Structure, allowed=None, excluded=()) -> list[
                 or (allowed is not None and r not in allowed)):
             continue
         missing = [q for q in EFFECTS[r].requires if q not in reduced.effects]
-        if all(q in possible for q in missing):
+        if all(q in possible for q in missing) and not any(incompatible(r, x) for x in reduced.effects):
             out.append(BUNDLE.join([*missing, r]))
     return out
 

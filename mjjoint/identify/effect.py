@@ -73,7 +73,7 @@ class Effect:
     params: tuple[Param, ...]
     apply: Callable[[Any, dict[str, float]], Any]
     requires: tuple[str, ...] = ()
-    excludes: tuple[str, ...] = ()
+    excludes: tuple[str, ...] = ()    # effects that cannot be in one model with it
     # Effects whose fitted values stand in for this one while it is missing (a rigid link's fit
     # damps the rod's oscillation with the gear's damper): freed with it when it is screened.
     stand_ins: tuple[str, ...] = ()

@@ -217,6 +217,14 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            evidence=("viscous",), plot="motor_velocity", direct_drive=True, term="friction",
            read=_friction_read(lambda f: {"viscous_asymmetry.ratio": f.sigma_asym},
                                lambda f: f.sigma > 0 and f.sigma_asym != 0, coulomb=False)),
+    Effect("load_dependent_friction", "friction levels growing with the torque the gear transmits, "
+           "(Fc + g |T| / N) sgn(w)",
+           (Param("load_dependent_friction.gain", 0.05, 0.0, 0.9, log=False),),
+           lambda m, v: _set_friction(m, load_gain=v["load_dependent_friction.gain"]),
+           requires=("coulomb_friction",), excludes=("dynamic_friction",),
+           evidence=("coulomb", "sin_theta"), plot="motor_velocity", term="friction",
+           read=_friction_read(lambda f: {"load_dependent_friction.gain": f.load_gain},
+                               lambda f: getattr(f, "load_gain", 0.0) > 0)),
     Effect("load_friction", "output bearing friction Fc sgn(theta') + d_f theta'",
            (Param("load_friction.fc", 0.1, 1e-4, 50.0, unit="N m"),
             Param("load_friction.viscous", 0.01, 1e-5, 10.0, unit="N m s/rad")),
@@ -365,6 +373,11 @@ def minimal_model(nominal: Plant, gear_ratio: float) -> Model:
     return arm, joint
 
 
+def incompatible(a: str, b: str) -> bool:
+    """Whether effects ``a`` and ``b`` cannot be in one model (either's ``Effect.excludes``)."""
+    return b in EFFECTS[a].excludes or a in EFFECTS[b].excludes
+
+
 def check_effects(names, known: tuple[str, ...] = tuple(EFFECTS)) -> tuple[str, ...]:
     """Validate and order effect names (requirements first); unknown names fail in one line."""
     names = list(dict.fromkeys(names))
@@ -375,5 +388,8 @@ def check_effects(names, known: tuple[str, ...] = tuple(EFFECTS)) -> tuple[str, 
         missing = [r for r in EFFECTS[n].requires if r not in names]
         if missing:
             raise ValueError(f"effect {n!r} needs {missing[0]!r} in the model as well")
+        clash = [r for r in names if incompatible(n, r)]
+        if clash:
+            raise ValueError(f"effect {n!r} cannot be in one model with {clash[0]!r}")
     order = list(EFFECTS)
     return tuple(sorted(names, key=order.index))

@@ -33,7 +33,9 @@ from ..physics.twosep import TwoSEP, twosep_force
 from .effects import EFFECTS, Param, check_effects
 from .windows import velocity
 
-FRICTION_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.term == "friction")
+# A friction log is one joint's friction against its own motion: the friction effects a direct
+# drive can have (not those of a gear's transmitted torque, which the log does not hold).
+FRICTION_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.term == "friction" and e.direct_drive)
 BASE = ("coulomb_friction", "viscous_friction")
 BLOCK = 0.25  # [s] held-out blocks: long against the friction's memory (2SEP's lag, ms)
 HOLDOUT = 0.25

@@ -138,6 +138,10 @@ class StaticFriction:
     # slope fc/v_eps on the rotor inertia J must keep fc h/(v_eps J) < 2: 1 rad/s suits fc = 0.08
     # N m, J = 5e-5 kg m^2, h = 0.5 ms (and is 0.3 % of the 325 rad/s idling speed).
     v_eps: float = 1.0
+    # Load-dependent friction: both levels grow by load_gain |T| / N, T the torque the gear
+    # transmits (gear teeth and bearings pressed by the load; an efficiency below one). 0: the
+    # chapter's load-independent map. The map of a call (``__call__``) is the one at T = 0.
+    load_gain: float = 0.0
 
     def __post_init__(self) -> None:
         check("fc", self.fc, 0.0)
@@ -149,6 +153,7 @@ class StaticFriction:
         check("asym", self.asym, -lim, lim)
         check("sigma_asym", self.sigma_asym, -1.0, 1.0, lo_open=True, hi_open=True)
         check("v_eps", self.v_eps, 0.0)
+        check("load_gain", self.load_gain, 0.0, 1.0, hi_open=True)
 
     @classmethod
     def coulomb(cls, fc: float, v_eps: float = 1.0) -> "StaticFriction":

@@ -121,6 +121,10 @@ def _current_loop(r):
     return _lab(r, current_lag=r.uniform(2e-3, 5e-3)), {"right": ("input_delay",)}
 
 
+def _gear_efficiency(r):
+    return _lab(r, load_dependence=r.uniform(0.2, 0.4)), {"right": ("load_dependent_friction",)}
+
+
 def _coarse_encoder(r):
     return _lab(r), {"sensors": Sensors(motor_bits=11, motor_noise=2e-4)}
 
@@ -183,6 +187,7 @@ CASES: dict[str, tuple[str, Callable]] = {
     "flexible_rod": ("lumped two-mass flexible rod, 8-14 Hz", _flexible_rod),
     "backlash+lag": ("backlash and a current-loop lag", _backlash_and_lag),
     "posfriction+hysteresis": ("position-dependent friction and a Bouc-Wen gear", _position_friction_and_hysteresis),
+    "gear_efficiency": ("friction level raised by 20-40 % of the motor-side gear torque", _gear_efficiency),
 }
 CONTROLS = ("control", "coarse_encoder")
 

@@ -57,6 +57,9 @@ class JointPlant:
     load_viscous: float = 0.0
     load_veps: float = 2e-3             # [rad/s] sign regularisation of the load's Coulomb friction
     friction: LuGre | MaxwellSlip | None = None
+    # LuGre's Coulomb level raised by this share of the motor-side gear torque |T| / N (tooth
+    # and bearing friction pressed by the load: an efficiency below one)
+    load_dependence: float = 0.0
     position_friction: PositionDependence | None = None
     cogging: Cogging | None = None
     current_lag: float = 0.0            # [s]
@@ -100,7 +103,10 @@ class JointPlant:
         f, v = self.friction, s[1]
         scale = 1.0 if self.position_friction is None else self.position_friction.factor(s[0])
         if isinstance(f, LuGre):
-            dz, torque = f.rates(v, s[6], f.fc * scale, self.motor_inertia)
+            level = f.fc * scale
+            if self.load_dependence:
+                level += self.load_dependence * abs(self.transmission(s)[0]) / self.gear_ratio
+            dz, torque = f.rates(v, s[6], level, self.motor_inertia)
             return torque, dz, None
         if isinstance(f, MaxwellSlip):
             z = s[9:9 + self.n_maxwell]
