@@ -53,7 +53,8 @@ def static_friction_step(a, k, hj, fc, fs, vs, shape, sigma, asym, sigma_asym):
     if -hj * (fs - asym) <= a <= hj * (fs + asym):
         return 0.0, a / hj  # holds
     d = sgn(a)
-    lo, hi = sorted((d * 1e-300, a / k))
+    # the bracket's small end just off rest (S is set-valued at 0), below any root: tiny drives too
+    lo, hi = sorted((d * min(1e-300, 1e-20 * abs(a / k)), a / k))
     for _ in range(300):
         mid = 0.5 * (lo + hi)
         if (k * mid + hj * steady_state(mid, fc, fs, vs, shape, sigma, asym, sigma_asym) - a) > 0:

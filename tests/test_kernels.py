@@ -30,10 +30,12 @@ from mjjoint.physics.twosep import TwoSEP
 
 SETTINGS = settings(max_examples=150, deadline=None)
 RTOL = 1e-11  # compiled and interpreted libm calls may differ in the last bits
+ROUNDING_DISPLACEMENT = 1e-15  # [rad] a motion since a reversal this small is the last bits of a step's
 
 
 def close(a: float, b: float, scale: float = 1.0) -> bool:
-    return math.isclose(a, b, rel_tol=RTOL, abs_tol=RTOL * scale)
+    # Below the smallest normal double (subnormal results of tiny draws) no relative precision is left.
+    return math.isclose(a, b, rel_tol=RTOL, abs_tol=max(RTOL * scale, np.finfo(float).tiny))
 
 
 def finite(lo: float, hi: float) -> st.SearchStrategy[float]:
@@ -281,6 +283,10 @@ def test_newton_in_bracket_finds_the_root_of_an_increasing_function(c, b):
 @given(a=velocity, k=finite(1.0, 10.0), hj=finite(1e-6, 100.0), p=statics())
 @example(a=1.0, k=1.0, hj=10.0, p=StaticFriction())        # holds: |a| <= hj Fs
 @example(a=-5.0, k=1.5, hj=10.0, p=StaticFriction())       # slides through the Stribeck dip
+@example(a=2.2250738585072014e-308, k=1.0, hj=1.0,          # a subnormal friction torque
+         p=StaticFriction(fc=0.0, fs=0.0, sigma=0.0078125, v_eps=1.0))
+@example(a=5.36502995746499e-302, k=1.0, hj=1.0,            # a root below the reference's old bracket
+         p=StaticFriction(fc=0.0, fs=0.0, sigma=0.0078125, v_eps=1.0))
 def test_static_friction_step(a, k, hj, p):
     """The exact static map over a step holds the dof below break-away and otherwise returns a
     root of k w1 + hj S(w1) = a on the drive's side, no faster than without friction; where S
@@ -370,6 +376,11 @@ def plugin_state(s: ref.JointState, at: float = np.nan, other: float = np.nan, o
                        load_friction=None),
          s=ref.JointState(w_sign=-1.0), m=(0.0, 3.0, 0.0, 0.0), h=1.1594381854420656e-4, hj=1e-7, hjl=0.0,
          other=np.nan, other_t=np.nan, other_l=np.nan, trend=0.0)  # a reversal substepped on a heavy rotor
+@example(p=JointParams(friction=TwoSEP(fc=1.0, fs=1.0, vs=1.0, sigma=0.0, k=9089.0, b=0.0),
+                       transmission=Transmission(gear_ratio=1.0, k1=1.0, k2=0.0, k3=0.0, damping=0.0, hysteresis=None),
+                       load_friction=None),
+         s=ref.JointState(w_sign=-1.0), m=(0.0, 2.220446049250313e-16, 0.0, 0.0), h=0.0013894762225217998, hj=6.0,
+         hjl=0.0, other=np.nan, other_t=np.nan, other_l=np.nan, trend=0.0)  # a reversal within the last bits of rest
 def test_joint_forces_and_advance(p, s, m, h, hj, hjl, other, other_t, other_l, trend):
     """The kernels against the reference; the link's other torques are extrapolated from the
     last two steps' (``trend`` apart)."""
@@ -394,7 +405,12 @@ def test_joint_forces_and_advance(p, s, m, h, hj, hjl, other, other_t, other_l, 
     kernels.joint_advance(blk, st_arr, q, wq, theta, wtheta, h)
     want = ref.joint_advance(p, s, q, wq, theta, wtheta, h).as_list()
     assert st_arr.shape == (NSTATE,)
-    assert all(close(g, r, 100.0 * (1 + abs(theta))) for g, r in zip(st_arr[:AT], want)), (list(st_arr), want)
+    got = list(st_arr[:AT])
+    if got[WSIGN] != want[WSIGN] and max(abs(got[QR]), abs(want[QR])) <= ROUNDING_DISPLACEMENT:
+        # A reversal decided on an end velocity within its last bits of zero (the displacement
+        # since it below rounding) may go either way: both states hold the same motion.
+        got[WSIGN] = want[WSIGN]
+    assert all(close(g, r, 100.0 * (1 + abs(theta))) for g, r in zip(got, want)), (list(st_arr), want)
 
 
 @SETTINGS
