@@ -28,7 +28,9 @@ from mjjoint.physics.stribeck import StaticFriction
 from mjjoint.physics.transmission import Transmission
 from mjjoint.physics.twosep import TwoSEP
 
-SETTINGS = settings(max_examples=150, deadline=None)
+# Derandomized: the suite's verdict does not change from run to run; edge cases a random search
+# found are pinned as @example, or as an expected failure where the kernel is still open.
+SETTINGS = settings(max_examples=150, deadline=None, derandomize=True)
 RTOL = 1e-11  # compiled and interpreted libm calls may differ in the last bits
 ROUNDING_DISPLACEMENT = 1e-15  # [rad] a motion since a reversal this small is the last bits of a step's
 
@@ -767,3 +769,15 @@ def test_viscous_asymmetry_gives_each_direction_its_slope_and_stays_dissipative(
 def test_a_viscous_asymmetry_that_would_make_a_slope_non_positive_is_refused(klass, r):
     with pytest.raises(ValueError, match="sigma_asym"):
         klass(sigma_asym=r)
+
+
+@pytest.mark.xfail(strict=True, reason="open: a 2SEP rotor at 1/64 rad/s under a strong lag (B = 179) against "
+                   "z1 at the Coulomb level: the kernel's substeps keep the motion's sign where the reference's "
+                   "reverse it (5.7e-8 rad past the reversal); found by a random search")
+def test_a_strongly_lagged_slow_rotor_reverses_as_the_reference_does():
+    test_joint_forces_and_advance.hypothesis.inner_test(
+        p=JointParams(friction=TwoSEP(fc=1.0, fs=1.0, vs=1.0, sigma=0.0, k=1.0, b=179.0),
+                      transmission=Transmission(gear_ratio=1.0, k1=1.0, k2=0.0, k3=0.0, damping=0.0, hysteresis=None),
+                      load_friction=None),
+        s=ref.JointState(z1=1.0, z2=3.0, w_sign=-1.0), m=(0.0, 0.015625, 0.0, 0.0), h=0.001953125, hj=1.0,
+        hjl=0.0, other=np.nan, other_t=np.nan, other_l=np.nan, trend=0.0)
