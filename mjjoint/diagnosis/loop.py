@@ -294,13 +294,18 @@ def candidates_for(structure: Structure, allowed=None) -> list[str]:
     it lacks too (module doc)."""
     possible = plant_effects(structure.nominal)
     names = list(default_candidates(structure)) if allowed is None else [e for e in allowed if e in possible]
-    out = []
-    for e in names:
-        missing = [r for r in EFFECTS[e].requires if r not in structure.effects]
-        if (e not in structure.effects and all(r in possible for r in missing)
-                and not any(incompatible(e, x) for x in structure.effects)):
-            out.append(BUNDLE.join([*missing, e]))
-    return out
+    keys = (bundle(e, structure.effects, possible) for e in names if e not in structure.effects)
+    return [k for k in keys if k is not None]
+
+
+def bundle(effect: str, effects, possible) -> str | None:
+    """The candidate key that adds ``effect`` to a model of ``effects``, with the prerequisites
+    it lacks; None where one of those is not ``possible`` or ``effect`` cannot be in one model
+    with an effect there."""
+    missing = [r for r in EFFECTS[effect].requires if r not in effects]
+    if not all(r in possible for r in missing) or any(incompatible(effect, x) for x in effects):
+        return None
+    return BUNDLE.join([*missing, effect])
 
 
 def generic_candidates(structure: Structure, where: dict, excluded=()) -> tuple[str, ...]:

@@ -33,13 +33,12 @@ from typing import Callable
 
 from scipy.stats import chi2
 
-from ..identify.effects import (EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, check_effects, incompatible,
-                                plant_effects)
+from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, check_effects, plant_effects
 from ..identify.fit import FitResult, finish, fit
 from ..identify.intervals import Z95
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
-from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust, acceptance,
+from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust, acceptance, bundle,
                    parts, screened_params)
 
 
@@ -105,15 +104,10 @@ def rivals(step: Step, structure: Structure, allowed=None, excluded=()) -> list[
     names = [r for r in possible if r not in SENSOR_EFFECTS and r not in GENERIC and related(e, r)]
     names += [parts(a.replace(" + ", BUNDLE))[-1] for a in step.alternatives]
     reduced = without(structure, [e])
-    out = []
-    for r in dict.fromkeys(names):
-        if (r == e or r in structure.effects or r in excluded or e in EFFECTS[r].requires
-                or (allowed is not None and r not in allowed)):
-            continue
-        missing = [q for q in EFFECTS[r].requires if q not in reduced.effects]
-        if all(q in possible for q in missing) and not any(incompatible(r, x) for x in reduced.effects):
-            out.append(BUNDLE.join([*missing, r]))
-    return out
+    keys = (bundle(r, reduced.effects, possible) for r in dict.fromkeys(names)
+            if not (r == e or r in structure.effects or r in excluded or e in EFFECTS[r].requires
+                    or (allowed is not None and r not in allowed)))
+    return [k for k in keys if k is not None]
 
 
 def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: dict, options: DiagnoseOptions

@@ -98,14 +98,15 @@ class JointPlant:
             spring = self.stiffness * de
         return spring + self.damping * dde, de, dde
 
-    def motor_friction(self, s: np.ndarray) -> tuple[float, float, np.ndarray | None]:
-        """(friction torque, dz/dt of LuGre, dz/dt of the Maxwell elements)."""
+    def motor_friction(self, s: np.ndarray, t_gear: float) -> tuple[float, float, np.ndarray | None]:
+        """(friction torque, dz/dt of LuGre, dz/dt of the Maxwell elements) at state s, the gear
+        transmitting ``t_gear``."""
         f, v = self.friction, s[1]
         scale = 1.0 if self.position_friction is None else self.position_friction.factor(s[0])
         if isinstance(f, LuGre):
             level = f.fc * scale
             if self.load_dependence:
-                level += self.load_dependence * abs(self.transmission(s)[0]) / self.gear_ratio
+                level += self.load_dependence * abs(t_gear) / self.gear_ratio
             dz, torque = f.rates(v, s[6], level, self.motor_inertia)
             return torque, dz, None
         if isinstance(f, MaxwellSlip):
@@ -116,7 +117,7 @@ class JointPlant:
     def derivative(self, s: np.ndarray, u: float) -> np.ndarray:
         d = np.zeros_like(s)
         t_gear, de, dde = self.transmission(s)
-        fric, dz, dmax = self.motor_friction(s)
+        fric, dz, dmax = self.motor_friction(s, t_gear)
         ue = s[8] if self.current_lag > 0 else u
         cog = 0.0 if self.cogging is None else self.cogging.torque(s[0])
         d[0] = s[1]
