@@ -254,7 +254,11 @@ def twosep_velocity(blk, z1, z2, omega, qr, wsign, fx, gd, om, wq, h, hj):
                                 blk[F.fc], blk[F.k], blk[F.asym])
         return w1, z1r + c * w1
     if c != 0.0:
-        w1 = wq + implicit_dof(fm - c * wq, gd - c, om, hj)
+        # w1 = wq + hj (other + fm - c w1 + gd (w1 - wq)), solved as one quotient: the damper's
+        # force taken apart from the others' sum keeps a rotor the lag brings to rest from
+        # crossing zero on the sum's rounding.
+        kd = 1.0 - gd * hj
+        w1 = (kd * wq + hj * (om + fm)) / (kd + c * hj)
     return w1, z1 + c * w1
 
 
