@@ -15,7 +15,8 @@ Each round:
 4. the candidate that lowers the HELD-OUT cost most is named if it passes both tests below;
    if none does and a located condition is significant, the generic forms that condition points
    to (``identify.generic``: the open vocabulary, named by site and form) are screened and
-   judged the same way;
+   judged the same way; if none of those does either, the two best screens fitted together
+   (``diagnosis.pairs``: two missing terms can mask each other) are judged as one addition;
    it is added, the whole structure refitted (least squares, then under the robust loss over
    windows, kept if that lowers the held-out cost: ``DiagnoseOptions.robust_refit``), the
    search revised (``diagnosis.revise``: an addition that is a stand-in is refused, named
@@ -116,6 +117,7 @@ class DiagnoseOptions:
     free_all: bool = True        # a material but inconsistent best screen: screen again, all free
     generic: bool = True         # where no catalogued effect explains a located residual, fit the generic forms it points to
     revise: bool = True          # after each addition: stand-in guard, swaps for rivals, removals (diagnosis.revise)
+    pairs: bool = True           # no single candidate passes: the two best screens together (diagnosis.pairs)
 
 
 @dataclass
@@ -178,9 +180,10 @@ class Diagnosis:
 
     def models(self) -> list[Structure]:
         """The model before the first step and after each (the final one last); after a swap or
-        a removal, as the final fit has them (``revise.step_models``)."""
+        a removal, or where one round named a pair (one fit for two steps), as the final fit has
+        them (``revise.step_models``)."""
         from .revise import step_models
-        if any(r.kind != "stand-in" for r in self.revisions):
+        if any(r.kind != "stand-in" for r in self.revisions) or any(s.screen.startswith(TOGETHER) for s in self.steps):
             return step_models(self.initial.structure, self.final.structure, self.steps)
         return [r.structure for r in self.history] if self.steps else [self.initial.structure]
 
@@ -237,6 +240,8 @@ def residual_location(predictor: Predictor, structure: Structure, seed: int = 0)
 
 
 BUNDLE = "+"  # joins an effect to the prerequisites screened with it: "linear_stiffness+backlash"
+PAIR = " & "  # joins the two candidate keys named together (``diagnosis.pairs``): "backlash & input_delay"
+TOGETHER = "together with"  # a pair's steps' screen: "together with backlash"
 
 
 def parts(key: str) -> tuple[str, ...]:
@@ -374,6 +379,12 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 g_choice = _decide(predictor, g_ref, g_screened, options, floor_cost)
             if not g_choice.failed:
                 choice, ref, screened, rest, screen = g_choice, g_ref, g_screened, g_rest, "generic form"
+        if choice.failed and options.pairs:
+            from .pairs import pair_screen  # pairs builds on this module
+            with phases("pair screen"):
+                pair = pair_screen(predictor, ref, screened, options, floor_cost, say)
+            if pair is not None and not pair.failed:
+                choice, screen = pair, "together"
         best, cand, gain = choice.best, choice.cand, choice.gain
         unresolved = unresolved_screens({**{k: (c, None) for k, c in rest.items()}, **screened}, ref.cost_test)
         if choice.failed:
@@ -385,7 +396,9 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             break
         alternatives, consistency = [a.replace(BUNDLE, ' + ') for a in choice.alternatives], choice.consistency
         tested_on, p_value = consistency["windows"], consistency["p"]
-        say(f"adding {best} (held-out cost -{100 * gain:.1f} %, paired p = {p_value:.3g} on {tested_on}), refitting")
+        keys = best.split(PAIR)
+        say(f"adding {' and '.join(keys)} (held-out cost -{100 * gain:.1f} %, paired p = {p_value:.3g} on "
+            f"{tested_on}), refitting")
         with phases("refit after addition, least squares"):
             refit = fit(predictor, _at_step(predictor, cand.structure, base.nominal.timestep), max_iter=options.fit_iter,
                         progress=iterations)
@@ -400,29 +413,38 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 say(f"  robust refit: held-out cost {robust.cost_test:.4g} against least squares' "
                     f"{refit.cost_test:.4g}: kept")
                 refit = robust
-        *needed, principal = parts(best)
-        step = Step(
-            effect=principal, prerequisites=needed, evidence=_evidence(best, where), where=where,
-            parameters={p.name: refit.structure.values[p.name] for e in parts(best) for p in EFFECTS[e].params},
+        added = [Step(
+            effect=parts(key)[-1], prerequisites=list(parts(key)[:-1]), evidence=_evidence(key, where), where=where,
+            parameters={p.name: refit.structure.values[p.name] for e in parts(key) for p in EFFECTS[e].params},
             fit_before=current.nrmse_test, fit_after=refit.nrmse_test,
             gain=1.0 - refit.cost_test / current.cost_test,
-            screened={**rest, **{k: v[0] for k, v in screened.items()}}, alternatives=alternatives,
-            consistency=consistency, screen=screen)
+            screened={**rest, **{k: v[0] for k, v in screened.items()}},
+            alternatives=alternatives if len(keys) == 1 else [],
+            consistency=consistency,
+            screen=screen if len(keys) == 1 else f"{TOGETHER} {' + '.join(parts(other))}")
+            for key, other in zip(keys, keys[::-1])]
         unresolved = {}  # screened against the model before this addition
         if options.revise:
             from .revise import revise, stand_in  # revise builds on this module
-            with phases("stand-in guard"):
-                refusal, freer = stand_in(predictor, current, refit, step, steps, options, floor_cost, say)
-            if refusal is not None:
-                if freer is not None and freer.cost_test < current.cost_test:  # the same structure, fitted further
+            refusals = []
+            for step in added:
+                with phases("stand-in guard"):
+                    refusal, freer = stand_in(predictor, current, refit, step, steps + [s for s in added if s is not step],
+                                              options, floor_cost, say)
+                if refusal is not None:
+                    refusals.append(refusal)
+                    say(f"  {step.effect} is not named: {refusal.reason}")
+            if refusals:
+                # A single step's freer refit is the same structure fitted further; a pair's is
+                # the model with the other member, not the one this round extends.
+                if len(added) == 1 and freer is not None and freer.cost_test < current.cost_test:
                     current = history[-1] = freer
-                say(f"  {principal} is not named: {refusal.reason}")
-                revisions.append(refusal)
+                revisions += refusals
                 allowed = options.candidates or default_candidates(current.structure)
                 search = dataclasses.replace(options, candidates=tuple(e for e in allowed
                                                                        if e not in refused(revisions)))
                 continue
-        steps.append(step)
+        steps += added
         current = refit
         history.append(current)
         if options.revise:

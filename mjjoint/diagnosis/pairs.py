@@ -1,0 +1,73 @@
+"""Two effects at once: a recording may need two missing terms whose residuals mask each other.
+
+A backlash and a current-loop lag both act on the gear torque near reversals; with one of them
+missing, the other's screen fits part of its residual with the wrong shape and gains less than
+the acceptance rule asks, so forward selection, one effect a round, stops with both missing.
+When no single candidate passes, the two best finished screens are fitted together (each from
+its own screen's values, the parameters both screens free) and judged as one addition:
+
+- against the model they extend, by the acceptance rule at half its level (a second look at the
+  same round, Bonferroni, as the screen with every parameter free is);
+- against each of the two alone, by the relative gain: each must earn its place beside the
+  other, the test the revisions' removal applies to every named effect once more afterwards.
+
+Only screens that gain PAIR_SHARE of the relative gain on their own are paired: a term whose
+screen explains nothing has no residual of its own to be masked, and fewer pairs keep the
+second look to one test a round.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from ..identify.effects import EFFECTS, incompatible
+from ..identify.fit import FitResult, fit
+from ..identify.windows import Predictor
+from .loop import PAIR, DiagnoseOptions, _Choice, acceptance, parts, screened_params
+
+PAIR_SHARE = 0.5  # a screen gaining this share of ``min_gain`` on its own may be paired
+
+
+def compatible(a: str, b: str) -> bool:
+    """Whether candidates ``a`` and ``b`` (bundle keys) can be added to one model together."""
+    pa, pb = parts(a), parts(b)
+    return not set(pa) & set(pb) and not any(incompatible(x, y) for x in pa for y in pb)
+
+
+def paired(screened: dict[str, tuple[float, FitResult]], ref: FitResult, min_gain: float) -> tuple[str, str] | None:
+    """The two best finished screens that each gain PAIR_SHARE of ``min_gain`` against ``ref`` and
+    can be in one model; None if there are not two."""
+    keen = sorted((k for k, (c, _) in screened.items() if c <= ref.cost_test * (1.0 - PAIR_SHARE * min_gain)),
+                  key=lambda k: screened[k][0])
+    for i, a in enumerate(keen):
+        for b in keen[i + 1:]:
+            if compatible(a, b):
+                return a, b
+    return None
+
+
+def pair_screen(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],
+                options: DiagnoseOptions, floor_cost: float, say: Callable[[str], None]) -> _Choice | None:
+    """The pair of the round's screens to name together (module doc), or None."""
+    pair = paired(screened, ref, options.min_gain)
+    if pair is None:
+        return None
+    a, b = pair
+    first, second = screened[a][1].structure, screened[b][1].structure
+    trial = first.at_timestep(min(first.nominal.timestep, second.nominal.timestep))
+    *needed, effect = parts(b)
+    for e in needed:
+        trial = trial.with_effect(e)
+    own = {p.name: second.values[p.name] for e in parts(b) for p in EFFECTS[e].params}
+    trial = trial.with_effect(effect, own, {k: v for k, v in second.settings.items() if k.split(".")[0] in parts(b)})
+    freed = list(dict.fromkeys([*screened_params(a, ref.structure), *screened_params(b, ref.structure)]))
+    key = a + PAIR + b
+    cand = fit(predictor, trial, freed, max_iter=options.screen_iter)
+    gain, consistency, failed = acceptance(predictor, ref, cand, parts(a)[-1], options, floor_cost, options.max_p / 2)
+    for alone in (a, b):
+        share = 1.0 - cand.cost_test / screened[alone][0]
+        if share < options.min_gain:
+            failed.append(f"{100 * share:.1f} % below {alone} alone < {100 * options.min_gain:.0f} %")
+    say(f"  screened {key.replace('+', ' + ')} together: held-out cost {ref.cost_test:.4g} -> {cand.cost_test:.4g} "
+        f"(alone {screened[a][0]:.4g}, {screened[b][0]:.4g})" + (f"; fails {', '.join(failed)}" if failed else
+                                                                  "; passes"))
+    return _Choice(key, cand, gain, [], consistency, failed, False)

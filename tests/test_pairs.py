@@ -1,0 +1,61 @@
+"""Two missing effects at once (diagnosis/pairs.py): when each alone gains less than the
+acceptance rule asks, the two best screens fitted together are judged as one addition."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import json
+
+from mjjoint.api.problem import joint_problems
+from mjjoint.benchmark.independent.cases import make_case
+from mjjoint.benchmark.independent.record import record, write_csv
+from mjjoint.diagnosis.loop import DiagnoseOptions, diagnose
+from mjjoint.report.build import write_diagnosis
+from mjjoint.diagnosis.pairs import PAIR_SHARE, compatible, paired
+
+
+def _screens(**costs):
+    return {k.replace("__", "+"): (c, None) for k, c in costs.items()}
+
+
+def test_the_two_best_screens_that_can_share_a_model_are_paired():
+    ref = SimpleNamespace(cost_test=1.0)
+    keen = 1.0 - PAIR_SHARE * 0.1 - 1e-3  # just gains PAIR_SHARE of the relative gain
+    screens = _screens(dynamic_friction=0.90, load_dependent_friction=0.91, backlash=keen, input_offset=0.999)
+    # 2SEP and load-dependent friction cannot be in one model: the best goes with the next that can
+    assert not compatible("dynamic_friction", "load_dependent_friction")
+    assert paired(screens, ref, 0.1) == ("dynamic_friction", "backlash")
+    # two bundles of one prerequisite are one gear, not two effects
+    assert not compatible("linear_stiffness+backlash", "linear_stiffness+transmission_hysteresis")
+    assert paired(_screens(linear_stiffness__backlash=0.9, linear_stiffness__transmission_hysteresis=0.92), ref,
+                  0.1) is None
+    # a screen that explains too little on its own has no residual to be masked
+    assert paired(_screens(backlash=0.9, input_delay=1.0 - PAIR_SHARE * 0.1 + 1e-3), ref, 0.1) is None
+
+
+def test_a_backlash_and_a_current_loop_lag_masking_each_other_are_named_together(tmp_path):
+    """The independent plant's gear play with a current-loop lag (6 s), from a model whose cubic
+    gear stands in for part of both: each screened alone gains under 10 % (the rule's relative
+    gain), together they pass; both named in one round, and the torque fit improves threefold."""
+    case = make_case("backlash+lag", 0, 6.0)
+    path = write_csv(tmp_path / "recording.csv", record(case.plant, case.excitation, case.sensors, 0))
+    options = DiagnoseOptions(candidates=("backlash", "input_delay"), max_rounds=1, fit_iter=10, screen_iter=6,
+                              robust_refit=False, robust_final=False)
+    problem = joint_problems(path, {"gear_ratio": case.plant.gear_ratio, "base": [*case.base, "nonlinear_stiffness"]})
+    diag = diagnose(problem[None].predictor, problem[None].base, options)
+    assert sorted(diag.missing) == ["backlash", "input_delay"]
+    first, second = diag.steps
+    assert first.screen == f"together with {second.effect}" and second.screen == f"together with {first.effect}"
+    before = diag.initial.cost_test
+    for effect in ("backlash", "input_delay"):
+        assert first.screened[effect] > (1.0 - options.min_gain) * before  # alone: below the rule
+    assert first.consistency["p"] <= options.max_p / 2
+    assert diag.final.nrmse_test["tau"] < diag.initial.nrmse_test["tau"] / 3
+    assert not diag.explained  # the lag is a first-order filter, the delay its stand-in
+    folder = tmp_path / "report"
+    folder.mkdir()
+    run = {"rollouts_full_length": diag.rollouts, "seconds": diag.seconds}
+    report = write_diagnosis(folder, problem[None].predictor, diag, path.name, run)
+    assert json.loads((folder / "diagnosis.json").read_text())["missing"] == report["missing"]
+    assert len(diag.models()) == 3 and {"backlash", "input_delay"} - set(diag.models()[1].effects) == {second.effect}
+    assert (folder / f"step2_{second.effect}.png").exists()
