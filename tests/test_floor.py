@@ -72,6 +72,19 @@ def test_the_right_model_is_explained_and_a_model_missing_physics_is_not(rigid):
     assert max(noise_floor(predictor, lacking).ratios(lacking_nrmse).values()) > EXPLAINED_RATIO
 
 
+def test_the_floors_cost_is_over_the_signals_the_fit_scores(rigid):
+    """The absolute gain an effect must reach is a share of the floor's cost, in the fit's cost
+    units: scored on q alone, the floors of theta, delta and tau do not count (a deflection far
+    above its floor made that gain 46x the whole model's cost on a real robot's motor angle)."""
+    truth, predictor = rigid
+    q_only = Predictor(predictor.m, WindowDesign(), fit_signals=("q",))
+    floor = noise_floor(q_only, truth)
+    assert set(floor.nrmse) == {"q", "theta", "delta", "tau"}  # each still reported
+    assert floor.cost() == pytest.approx(floor.nrmse["q"] ** 2)
+    every = noise_floor(predictor, truth)
+    assert every.cost() == pytest.approx(np.mean([v ** 2 for v in every.nrmse.values()]))
+
+
 def test_stacked_recordings_give_a_twin_whose_windows_never_start_across_a_join(rigid):
     # Two runs that end and start in different places: the twin's velocities taken across the
     # join would start the window there at the jump's speed (a floor of several times the spread).

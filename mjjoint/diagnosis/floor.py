@@ -55,6 +55,7 @@ class Floor:
     twin: dict[str, float]              # NRMSE of the right model on its noisy twin (may be empty)
     note: str = ""                      # why the twin is missing, if it is
     signals: tuple[str, ...] = field(default=())
+    scored: tuple[str, ...] = field(default=())  # those the fit's cost scores (default: every one)
 
     @property
     def nrmse(self) -> dict[str, float]:
@@ -70,8 +71,11 @@ class Floor:
         return all(r <= EXPLAINED_RATIO for r in self.ratios(nrmse).values())
 
     def cost(self) -> float:
-        """The floor in the fit's cost units (mean squared normalised residual over signals)."""
-        return float(np.mean([v * v for v in self.nrmse.values()]))
+        """The floor in the fit's cost units: the mean squared normalised residual over the
+        signals the cost scores (a signal reported but not scored, a deflection far above its
+        floor, would otherwise set the absolute gain an effect must reach on the others)."""
+        floor = self.nrmse
+        return float(np.mean([floor[s] ** 2 for s in (self.scored or self.signals)]))
 
     def as_dict(self) -> dict:
         return {"nrmse": self.nrmse, "measurement_nrmse": self.measurement, "twin_nrmse": self.twin,
@@ -140,7 +144,7 @@ def noise_floor(predictor: Predictor, structure: Structure | None = None, seed: 
     twin, note = {}, ""
     if structure is not None:
         twin, note = _twin_floor(predictor, structure, noise, quantum, spread, seed)
-    return Floor(noise, quantum, measurement, twin, note, signals)
+    return Floor(noise, quantum, measurement, twin, note, signals, tuple(predictor.signals))
 
 
 def _twin_floor(predictor: Predictor, structure: Structure, noise: dict, quantum: dict, spread: dict,
