@@ -228,3 +228,25 @@ def test_script_writes_a_report_with_the_published_comparison(tmp_path):
     assert rows["linear_stiffness.k1"]["published"] == pytest.approx(4.5778e6)
     # Fitted on the motor angle of A, the model predicts B's motor angle to < 20 % of its spread.
     assert summary["nrmse_validation_file"]["after"]["q"] < 0.2
+
+
+@needs_data
+@pytest.mark.slow
+def test_the_command_line_alone_names_what_the_motor_angle_shows(tmp_path):
+    """docs/datasets.md's command (no script, no published value), one round: scored on q, the
+    absolute gain is judged against q's floor alone (the unscored deflection's floor, 0.74 in
+    NRMSE, once set it 46x above the model's whole cost and nothing was named)."""
+    from mjjoint.cli import main
+    out = tmp_path / "kr300_cli"
+    code = main(["diagnose", str(DATA / kr300.FILES["A"]), "--gear-ratio", "256.85714285714283",
+                 "--columns", "t=rec.time_cont,q=rec.act_pos_mot_deg[0],theta=rec.act_pos_se_deg[0],"
+                              "u=rec.act_torque_abs_nm[0]",
+                 "--scales", "q=4.482994,theta=deg", "--fit-signals", "q",
+                 "--base", "linear_stiffness,coulomb_friction,viscous_friction", "--max-rounds", "1",
+                 "--out", str(out)])
+    assert code == 0
+    diagnosis = json.loads((out / "diagnosis.json").read_text())
+    assert diagnosis["missing"] == ["dynamic_friction"], diagnosis["verdict"]
+    before, after = diagnosis["initial_fit"]["nrmse_heldout"]["q"], diagnosis["final_fit"]["nrmse_heldout"]["q"]
+    assert after < 0.8 * before
+    assert not diagnosis["explained"]  # far above q's floor, and the verdict says so
