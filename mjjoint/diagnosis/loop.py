@@ -249,6 +249,15 @@ def parts(key: str) -> tuple[str, ...]:
     return tuple(key.split(BUNDLE))
 
 
+def with_candidate(structure: Structure, key: str, values=None, settings=None) -> Structure:
+    """``structure`` with candidate ``key``: its prerequisites at their initial values, then its
+    effect with ``values`` (any of the key's parameters) and ``settings``."""
+    *needed, effect = parts(key)
+    for e in needed:
+        structure = structure.with_effect(e)
+    return structure.with_effect(effect, values, settings)
+
+
 def _n_params(key: str) -> int:
     return sum(len(EFFECTS[e].params) for e in parts(key))
 
@@ -384,7 +393,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             with phases("pair screen"):
                 pair = pair_screen(predictor, ref, screened, options, floor_cost, say)
             if pair is not None and not pair.failed:
-                choice, screen = pair, "together"
+                choice = pair  # its steps' screen says "together with" the other
         best, cand, gain = choice.best, choice.cand, choice.gain
         unresolved = unresolved_screens({**{k: (c, None) for k, c in rest.items()}, **screened}, ref.cost_test)
         if choice.failed:
@@ -639,11 +648,7 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     starts: list[Structure] = []
     for i, (name, values, settings) in enumerate(trials, 1):
         start = time.perf_counter()
-        *needed, effect = parts(name)
-        trial = ref.structure
-        for e in needed:
-            trial = trial.with_effect(e)
-        trial = trial.with_effect(effect, values, settings)
+        trial = with_candidate(ref.structure, name, values, settings)
         freed = None if free_all else screened_params(name, ref.structure)
         with clock.phases("screens, subset"):
             res = fit(predictor, trial, freed, max_iter=options.screen_iter, subset_only=True)

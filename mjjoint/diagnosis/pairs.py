@@ -22,7 +22,7 @@ from typing import Callable
 from ..identify.effects import EFFECTS, incompatible
 from ..identify.fit import FitResult, fit
 from ..identify.windows import Predictor
-from .loop import PAIR, DiagnoseOptions, _Choice, acceptance, parts, screened_params
+from .loop import BUNDLE, PAIR, DiagnoseOptions, _Choice, acceptance, parts, screened_params, with_candidate
 
 PAIR_SHARE = 0.5  # a screen gaining this share of ``min_gain`` on its own may be paired
 
@@ -53,12 +53,9 @@ def pair_screen(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[
         return None
     a, b = pair
     first, second = screened[a][1].structure, screened[b][1].structure
-    trial = first.at_timestep(min(first.nominal.timestep, second.nominal.timestep))
-    *needed, effect = parts(b)
-    for e in needed:
-        trial = trial.with_effect(e)
     own = {p.name: second.values[p.name] for e in parts(b) for p in EFFECTS[e].params}
-    trial = trial.with_effect(effect, own, {k: v for k, v in second.settings.items() if k.split(".")[0] in parts(b)})
+    trial = with_candidate(first.at_timestep(min(first.nominal.timestep, second.nominal.timestep)), b, own,
+                           {k: v for k, v in second.settings.items() if k.split(".")[0] in parts(b)})
     freed = list(dict.fromkeys([*screened_params(a, ref.structure), *screened_params(b, ref.structure)]))
     key = a + PAIR + b
     cand = fit(predictor, trial, freed, max_iter=options.screen_iter)
@@ -67,7 +64,7 @@ def pair_screen(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[
         share = 1.0 - cand.cost_test / screened[alone][0]
         if share < options.min_gain:
             failed.append(f"{100 * share:.1f} % below {alone} alone < {100 * options.min_gain:.0f} %")
-    say(f"  screened {key.replace('+', ' + ')} together: held-out cost {ref.cost_test:.4g} -> {cand.cost_test:.4g} "
+    say(f"  screened {key.replace(BUNDLE, ' + ')} together: held-out cost {ref.cost_test:.4g} -> {cand.cost_test:.4g} "
         f"(alone {screened[a][0]:.4g}, {screened[b][0]:.4g})" + (f"; fails {', '.join(failed)}" if failed else
                                                                   "; passes"))
     return _Choice(key, cand, gain, [], consistency, failed, False)

@@ -39,7 +39,7 @@ from ..identify.intervals import Z95
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust, acceptance, bundle,
-                   parts, screened_params)
+                   parts, screened_params, with_candidate)
 
 
 @dataclass
@@ -116,12 +116,8 @@ def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: d
     on the fit's first-phase subset, ``loop._screen``), from each variant the evidence suggests; the
     lowest held-out cost, to be finished (``identify.fit.finish``)."""
     best = None
-    *needed, effect = parts(key)
-    for values, settings in _candidate_variants(effect, where, structure):
-        trial = structure
-        for e in needed:
-            trial = trial.with_effect(e)
-        trial = trial.with_effect(effect, values, settings)
+    for values, settings in _candidate_variants(parts(key)[-1], where, structure):
+        trial = with_candidate(structure, key, values, settings)
         res = fit(predictor, trial, screened_params(key, structure), max_iter=options.screen_iter, subset_only=True)
         if best is None or res.cost_test < best.cost_test:
             best = res
