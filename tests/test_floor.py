@@ -10,7 +10,7 @@ import pytest
 
 from mjjoint import Multisine, Simulator
 from mjjoint.assets import ArmSpec
-from mjjoint.diagnosis.floor import EXPLAINED_RATIO, noise_floor, quantisation_step, sensor_noise
+from mjjoint.diagnosis.floor import EXPLAINED_RATIO, _analog_noise, noise_floor, quantisation_step, sensor_noise
 from mjjoint.identify import windows
 from mjjoint.identify.fit import evaluate
 from mjjoint.identify.structure import Structure
@@ -57,6 +57,35 @@ def test_white_noise_is_estimated_on_a_moving_signal():
     x = 2.0 * np.sin(2 * np.pi * 0.8 * t) + rng.normal(0.0, 0.01, t.size)
     sigma, step = sensor_noise(x, RATE)
     assert step == 0.0 and sigma == pytest.approx(0.01, rel=0.15)
+
+
+def test_a_quantised_recording_keeps_its_steps_when_its_time_stamps_are_rounded():
+    """Stamps printed to a few digits sit on the uniform grid but for 1e-16: the samples are
+    taken as they are, not blended into values the encoder cannot read."""
+    t = np.round(np.arange(6000) * 0.001, 3)  # as a CSV gives them back
+    q = np.round((0.3 * np.sin(2 * np.pi * 1.3 * t) + 0.05 * np.sin(2 * np.pi * 7.0 * t)) / LSB) * LSB
+    m = Measured.from_recording(Recording(t=t, u=0 * t, q=q, theta=q / N, tau=0 * t), N)
+    np.testing.assert_array_equal(m.q, q)
+    assert quantisation_step(m.q) == pytest.approx(LSB, rel=1e-6)
+    # Stamps that are really off the grid are still resampled onto it.
+    jittered = t + 0.2e-3 * np.sin(np.arange(t.size))
+    m = Measured.from_recording(Recording(t=jittered, u=0 * t, q=q, theta=q / N, tau=0 * t), N)
+    assert not np.array_equal(m.q, q)
+
+
+def test_a_twin_of_a_sensor_that_only_rounds_draws_no_noise_before_rounding():
+    """What the noise estimator reads off a rounded signal is the rounding's, so the twin draws
+    only the noise beyond it: none for an encoder, the analog noise where there is some."""
+    t = np.arange(8000) / RATE
+    x = 30.0 * np.sin(2 * np.pi * 0.5 * t) + 2.0 * np.sin(2 * np.pi * 6.0 * t)
+    step = 2 * math.pi / 2 ** 12
+    m = Measured.from_recording(Recording(t=t, u=0 * t, q=x, theta=x / N, tau=0 * t), N)
+    for sigma in (0.0, 2e-3):
+        noisy = x + np.random.default_rng(3).normal(0.0, sigma, t.size)
+        noise, found = sensor_noise(np.round(noisy / step) * step, RATE)
+        assert found == pytest.approx(step, rel=1e-6)
+        analog = _analog_noise(x, noise, found, m)
+        assert analog == pytest.approx(sigma, abs=0.25 * 2e-3), (sigma, analog, noise)
 
 
 def test_the_right_model_is_explained_and_a_model_missing_physics_is_not(rigid):

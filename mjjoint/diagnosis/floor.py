@@ -8,8 +8,9 @@ report (rms error over the signal's spread within the held-out windows):
   smoothing, ``windows.noise_std``), and at least its quantisation (the common step of its
   values, step / sqrt(12));
 - **the windowing**: a simulated twin of the recording, made by the final model itself under
-  the measured input without restarts, with that noise and quantisation added, predicted by
-  the same model in the same windows. Its misfit is what window starts reconstructed from
+  the measured input without restarts, with that noise and quantisation added (the rounding
+  is part of the noise measured: only the rest is drawn before it), predicted by the same
+  model in the same windows, over TWIN_DRAWS draws of the noise. Its misfit is what window starts reconstructed from
   noisy samples and hidden states (pre-sliding, lag, hysteresis) cost a model that is right,
   as a share of the twin's own spread. A twin that wanders into another regime than the
   recording's (an open-loop run of a closed-loop recording that drifts off; a model far from
@@ -42,6 +43,9 @@ QUANTUM_SHARE = 0.95
 # in another regime (module doc): it gives no floor.
 TWIN_SPREAD = 2.0
 QUANTUM_TOL = 1e-2
+# Noise draws a twin's floor averages: with a few held-out windows, one draw's floor moves by
+# half its value from draw to draw.
+TWIN_DRAWS = 4
 FEW_STEPS = 20  # changes up to this many steps refine the step's estimate
 
 
@@ -149,40 +153,58 @@ def noise_floor(predictor: Predictor, structure: Structure | None = None, seed: 
 
 def _twin_floor(predictor: Predictor, structure: Structure, noise: dict, quantum: dict, spread: dict,
                 seed: int) -> tuple[dict[str, float], str]:
-    """NRMSE per signal of ``structure`` predicting its own noisy twin in the same windows."""
+    """NRMSE per signal of ``structure`` predicting its own noisy twin in the same windows, the
+    mean square over TWIN_DRAWS draws of the noise."""
     run = predictor.free_run(structure)
     m = predictor.m
     if not all(np.all(np.isfinite(run[s])) for s in ("q", "theta", "tau") if getattr(m, s) is not None):
         return {}, "the final model's free run of the recording diverged: no twin"
     rng = np.random.default_rng(seed)
+    present = [s for s in ("q", "theta", "tau") if getattr(m, s) is not None]
+    analog = {s: _analog_noise(run[s], noise[s], quantum[s], m) for s in present}
 
-    def recorded(s: str) -> np.ndarray | None:
-        if getattr(m, s) is None:
-            return None
-        x = run[s] + rng.normal(0.0, noise[s], len(run[s]))
+    def recorded(s: str) -> np.ndarray:
+        x = run[s] + rng.normal(0.0, analog[s], len(run[s]))
         return np.round(x / quantum[s]) * quantum[s] if quantum[s] > 0 else x
-    # A direct drive's recording has no theta: a placeholder, which from_recording ignores.
-    theta = recorded("theta") if m.theta is not None else np.zeros_like(m.t)
-    q, tau = recorded("q"), recorded("tau")
-    # Stacked recordings stay apart: velocities taken across a join would start a window there
-    # with the jump between two recordings as its speed.
-    twin_m = Measured.stack([
-        Measured.from_recording(Recording(t=m.t[a:b], u=m.u[a:b], q=q[a:b], theta=theta[a:b],
-                                          tau=None if tau is None else tau[a:b]),
-                                m.gear_ratio, output=m.theta is not None)
-        for a, b in m.segments])
-    twin = predictor.on(twin_m)
-    windows = twin.test
-    for s in spread:
-        ratio = twin.spread(s, windows) / spread[s]
-        if not 1 / TWIN_SPREAD <= ratio <= TWIN_SPREAD:
-            # An open-loop run of a closed-loop recording, or a model far off, wanders elsewhere:
-            # its windowing costs say nothing about this recording's.
-            return {}, f"the final model's free run is not like the recording ({s} spreads {ratio:.2g}x as far): no twin"
-    (pred,) = twin.predict([structure], windows)
-    out = {s: v for s, v in twin.nrmse(pred, windows).items() if s in spread}
+    squares = {s: 0.0 for s in spread}
+    for _ in range(TWIN_DRAWS):
+        drawn = {s: recorded(s) for s in present}
+        # A direct drive's recording has no theta: a placeholder, which from_recording ignores.
+        theta = drawn.get("theta", np.zeros_like(m.t))
+        tau = drawn.get("tau")
+        # Stacked recordings stay apart: velocities taken across a join would start a window
+        # there with the jump between two recordings as its speed.
+        twin_m = Measured.stack([
+            Measured.from_recording(Recording(t=m.t[a:b], u=m.u[a:b], q=drawn["q"][a:b], theta=theta[a:b],
+                                              tau=None if tau is None else tau[a:b]),
+                                    m.gear_ratio, output=m.theta is not None)
+            for a, b in m.segments])
+        twin = predictor.on(twin_m)
+        windows = twin.test
+        for s in spread:
+            ratio = twin.spread(s, windows) / spread[s]
+            if not 1 / TWIN_SPREAD <= ratio <= TWIN_SPREAD:
+                # An open-loop run of a closed-loop recording, or a model far off, wanders
+                # elsewhere: its windowing costs say nothing about this recording's.
+                return {}, (f"the final model's free run is not like the recording ({s} spreads {ratio:.2g}x as "
+                            "far): no twin")
+        (pred,) = twin.predict([structure], windows)
+        for s, v in twin.nrmse(pred, windows).items():
+            if s in squares:
+                squares[s] += v ** 2 / TWIN_DRAWS
+    out = {s: float(np.sqrt(v)) for s, v in squares.items()}
     if not all(np.isfinite(v) and v < 1.0 for v in out.values()):
         # A floor at the signal's own spread (no better than its mean) would make any model
         # look explained.
         return {}, "the final model could not predict its own twin (NRMSE 1 or more): no twin"
     return out, ""
+
+
+def _analog_noise(x: np.ndarray, noise: float, quantum: float, m: Measured) -> float:
+    """The std of the noise a twin draws before rounding to ``quantum``: the recording's noise
+    less what the same estimator (``noise_std``) reads off the noise-free signal ``x`` rounded
+    alone, so that a sensor that only rounds gets a twin that only rounds."""
+    if quantum <= 0:
+        return noise
+    rounded = max(noise_std(np.round(x / quantum) * quantum, m.rate, m.per_segment), quantum / np.sqrt(12.0))
+    return float(np.sqrt(max(noise ** 2 - rounded ** 2, 0.0)))

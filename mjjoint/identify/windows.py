@@ -83,6 +83,9 @@ FLEX_LEAD = 0.1
 # Longest lead-in a window may ask for [s] (WindowDesign.lead): far beyond any dwell a lead-in is
 # for, and a bound on its cost.
 MAX_LEAD = 60.0
+# Time stamps within this share of a sample of the uniform grid are that grid, rounded
+# (printed to a few digits, or accumulated in float): ``Measured.from_recording``.
+GRID_ROUNDING = 1e-6
 
 
 @dataclass(frozen=True)
@@ -185,7 +188,12 @@ class Measured:
         dt = float(t[-1] - t[0]) / (len(t) - 1)
         grid = t[0] + dt * np.arange(len(t))
         names = ("u", "q", "theta", "tau") if output else ("u", "q", "tau")
-        cols = {k: None if getattr(rec, k, None) is None else np.interp(grid, t, np.asarray(getattr(rec, k), float))
+        # Samples already on the grid but for the stamps' rounding are taken as they are:
+        # interpolating by fractions of 1e-13 would blend neighbours into values a quantised
+        # sensor cannot read, and hide its step from the noise floor.
+        on_grid = np.max(np.abs(t - grid)) <= GRID_ROUNDING * dt
+        take = (lambda x: x) if on_grid else (lambda x: np.interp(grid, t, x))  # noqa: E731
+        cols = {k: None if getattr(rec, k, None) is None else take(np.asarray(getattr(rec, k), float))
                 for k in names}
         cols.setdefault("theta", None)
         deriv = lambda x: None if x is None else velocity(x, dt)  # noqa: E731
