@@ -61,19 +61,54 @@ def _dynamic(model: Model, v: dict[str, float]) -> Model:
     return arm, dataclasses.replace(j, friction=twosep)
 
 
+# Eq. 15's Stribeck shape factor delta, a setting: 1 the exponential decay (the simulator's
+# default), 2 the Gaussian one (LuGre's usual map). A fitted exponent trades off against Vs
+# along a valley of the cost, so the two common shapes are screened instead.
+STRIBECK_SHAPE = "stribeck_friction.shape"
+STRIBECK_SHAPES = (1.0, 2.0)
+
+
 def _stribeck(model: Model, v: dict[str, float]) -> Model:
     fc = _friction(model).fc
-    return _set_friction(model, fs=fc * v["stribeck_friction.ratio"], vs=v["stribeck_friction.vs"])
+    return _set_friction(model, fs=fc * v["stribeck_friction.ratio"], vs=v["stribeck_friction.vs"],
+                         shape=v.get(STRIBECK_SHAPE, StaticFriction.shape))
+
+
+def _stribeck_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
+    return [({}, {STRIBECK_SHAPE: shape}) for shape in STRIBECK_SHAPES]
 
 
 def _asym(model: Model, v: dict[str, float]) -> Model:
     return _set_friction(model, asym=_friction(model).fc * v["friction_asymmetry.ratio"])
 
 
+# Eq. 17's loop shape gamma / beta, a setting: 1 the classic loop (unloading along the elastic
+# slope A), 0 beta alone (unloading stiffer, A + beta |x|). The passive range |gamma| <= beta,
+# which BoucWen enforces, ends at 1: a fitted ratio would sit on its bound at the classic loop,
+# so the ratio is screened at both ends of [0, 1] instead.
+HYSTERESIS_SHAPE = "transmission_hysteresis.shape"
+HYSTERESIS_SHAPES = (1.0, 0.0)
+
+
 def _hysteresis(model: Model, v: dict[str, float]) -> Model:
-    beta = 0.5 / v["transmission_hysteresis.x_u"]  # beta = gamma: x_u = 1/(beta + gamma)
-    bw = BoucWen(mu=v["transmission_hysteresis.mu"], beta=beta, gamma=beta)
+    shape = v.get(HYSTERESIS_SHAPE, 1.0)  # gamma / beta; x_u = 1/(beta + gamma)
+    beta = 1.0 / ((1.0 + shape) * v["transmission_hysteresis.x_u"])
+    bw = BoucWen(mu=v["transmission_hysteresis.mu"], beta=beta, gamma=shape * beta)
     return _set_transmission(model, hysteresis=bw)
+
+
+def _hysteresis_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
+    """Eq. 17's loop shape is not fitted but tried (HYSTERESIS_SHAPES): its admissible range
+    ends at the classic beta = gamma, where a fitted ratio would sit on its bound."""
+    return [({}, {HYSTERESIS_SHAPE: shape}) for shape in HYSTERESIS_SHAPES]
+
+
+def _read_hysteresis(model: Model) -> dict[str, float] | None:
+    bw = model[1].term("hysteresis")
+    if bw is None:
+        return None
+    return {"transmission_hysteresis.mu": bw.mu, "transmission_hysteresis.x_u": bw.x_ultimate,
+            HYSTERESIS_SHAPE: bw.gamma / bw.beta if bw.beta > 0 else 1.0}
 
 
 def _ripple(model: Model, v: dict[str, float]) -> Model:
@@ -193,10 +228,11 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("stribeck_friction", "break-away above the Coulomb level at low speed (Eq. 15)",
            (Param("stribeck_friction.ratio", 1.5, 1.0, 5.0, log=False),
             Param("stribeck_friction.vs", 0.5, 1e-3, 100.0, unit="rad/s", dim="speed")),
-           _stribeck, requires=("coulomb_friction",),
+           _stribeck, requires=("coulomb_friction",), variants=_stribeck_variants,
            evidence=("stribeck", "reversal"), acts_under="reversal", plot="motor_velocity", direct_drive=True,
            term="friction",
-           read=_friction_read(lambda f: {"stribeck_friction.ratio": f.fs / f.fc, "stribeck_friction.vs": f.vs},
+           read=_friction_read(lambda f: {"stribeck_friction.ratio": f.fs / f.fc, "stribeck_friction.vs": f.vs,
+                                          STRIBECK_SHAPE: f.shape},
                                lambda f: f.fs > f.fc)),
     Effect("dynamic_friction", "2SEP pre-sliding hysteresis and frictional lag (Eqs. 11-14)",
            (Param("dynamic_friction.k", 1000.0, 10.0, 1e5, unit="1/rad", dim="1/position"),
@@ -252,8 +288,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
             Param("transmission_hysteresis.x_u", 2e-3, 1e-6, 0.1, unit="rad")),
            _hysteresis, requires=("linear_stiffness",), site="gear",
            evidence=("hysteresis", "small_delta"), plot="loops", term="hysteresis",
-           read=term_values("hysteresis", {"transmission_hysteresis.mu": "mu",
-                                           "transmission_hysteresis.x_u": "x_ultimate"})),
+           variants=_hysteresis_variants, read=_read_hysteresis),
     Effect("transmission_damping", "viscous damping in the gear, D delta' (Eq. 18)",
            (Param("transmission_damping.d", 1.0, 1e-3, 1e3, unit="N m s/rad"),),
            lambda m, v: _set_transmission(m, damping=v["transmission_damping.d"]),
