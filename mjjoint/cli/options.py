@@ -48,9 +48,10 @@ def joint_numbers(text: str) -> tuple[int, ...]:
 def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
     """Options shared by fit and diagnose: the recording, the starting model, windows, output."""
     p.add_argument("recording", type=Path, nargs="+", metavar="REC",
-                   help="recording: .csv (t,u,q,theta[,tau]; several joints: t,u1,q1,theta1,...), .npz, .mat, "
-                        ".h5, .mcap or a ROS 2 bag folder; several single-joint recordings are stacked as "
-                        "separate segments (no window spans two)")
+                   help="recording: .csv, .tsv, .txt or .dat text table (t,u,q,theta[,tau]; several joints: "
+                        "t,u1,q1,theta1,...), .npz, .mat, .h5, .parquet, .json/.jsonl, .mcap or a ROS 2 bag "
+                        "folder; several single-joint recordings are stacked as separate segments (no window "
+                        "spans two)")
     r = p.add_argument_group("recording")
     r.add_argument("--gear-ratio", type=numbers, metavar="N",
                    help="gear ratio (required unless --model gives it); N1,N2,... one per joint")

@@ -1,9 +1,16 @@
-"""CSV recordings: a header line naming the columns, then one sample per line, comma-separated."""
+"""Text tables of samples (.csv, .tsv, .txt, .dat): a header line naming the columns, then one
+sample per line.
+
+The separator is the header's: a comma, else a tab, else a semicolon, else runs of spaces.
+Lines starting with ``#`` or ``%`` are comments (instrument and MATLAB exports put notes
+before the header). Where the separator is not a comma, a decimal comma (``1,25``, as
+spreadsheets in many locales write numbers) reads as a decimal point.
+"""
 
 from __future__ import annotations
 
 import csv
-import io
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
@@ -14,6 +21,9 @@ from ..params import is_number
 from .errors import RecordingError, listing, quote
 from .model import MultiRecording, Recording
 
+COMMENTS = ("#", "%")
+SEPARATORS = (",", "\t", ";")
+_DECIMAL_COMMA = re.compile(r"(?<=\d),(?=\d)")
 
 
 @dataclass(frozen=True)
@@ -54,19 +64,27 @@ def read_csv_table(path: Path) -> CsvTable:
         text = data.decode("utf-8-sig")  # -sig: spreadsheet exports often start with a BOM
     except UnicodeDecodeError as exc:
         raise RecordingError(f"{where}: not UTF-8 text (invalid byte at offset {exc.start})") from None
-    reader = csv.reader(io.StringIO(text, newline=""))
+    numbered = [(k, line) for k, line in enumerate(text.splitlines(), start=1)
+                if line.strip() and not line.lstrip().startswith(COMMENTS)]
+    if not numbered:
+        raise RecordingError(f"{where}: empty file (no header, no data)")
+    sep = _separator(numbered[0][1])
     rows: list[list[str]] = []
     lines: list[int] = []
-    try:
-        for row in reader:
-            if len(row) <= 1 and not "".join(row).strip():
-                continue  # blank line
-            rows.append([field.strip() for field in row])
-            lines.append(reader.line_num)
-    except csv.Error as exc:
-        raise RecordingError(f"{where}: line {reader.line_num}: malformed CSV ({exc})") from None
-    if not rows:
-        raise RecordingError(f"{where}: empty file (no header, no data)")
+    if sep is None:
+        for k, line in numbered:
+            rows.append(line.split())
+            lines.append(k)
+    else:
+        reader = csv.reader((line for _, line in numbered), delimiter=sep)
+        try:
+            for (k, _), row in zip(numbered, reader):
+                rows.append([field.strip() for field in row])
+                lines.append(k)
+        except csv.Error as exc:
+            raise RecordingError(f"{where}: line {numbered[len(rows)][0]}: malformed CSV ({exc})") from None
+    if sep != ",":
+        rows = [rows[0]] + [[_DECIMAL_COMMA.sub(".", field) for field in row] for row in rows[1:]]
     header, data_rows, data_lines = rows[0], rows[1:], lines[1:]
     _check_header(where, header, lines[0])
     if not data_rows:
@@ -79,11 +97,14 @@ def read_csv_table(path: Path) -> CsvTable:
     return CsvTable(where, tuple(header), tuple(data_rows), tuple(data_lines))
 
 
+def _separator(header: str) -> str | None:
+    """The header's separator (module doc); None: runs of whitespace."""
+    return next((sep for sep in SEPARATORS if sep in header), None)
+
+
 def _check_header(where: str, header: list[str], line: int) -> None:
     if all(is_number(name) for name in header):
         raise RecordingError(f"{where}: no header: line {line} is numeric; the first line must name the columns, e.g. t,u,q,theta")
-    if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
-        raise RecordingError(f"{where}: header {quote(header[0])} is a single column; the file must be comma-separated")
     for k, name in enumerate(header, start=1):
         if not name:
             raise RecordingError(f"{where}: header field {k} is empty")

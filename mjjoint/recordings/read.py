@@ -1,4 +1,4 @@
-"""`read_recording`: load a .csv, .npz, .mat, HDF5 file or a robot log, map and scale its columns, check them."""
+"""`read_recording`: load a text table, .npz, .mat, HDF5, Parquet or JSON file or a robot log, map and scale its columns, check them."""
 
 from __future__ import annotations
 
@@ -13,10 +13,12 @@ from .columns import ALLOWED, OPTIONAL, SIGNALS, check_column_map, check_scales,
 from .csv_io import read_csv_table
 from .errors import RecordingError, listing
 from .h5_io import read_h5_table
+from .json_io import read_json_table
 from .log_io import CLOCKS, LogTable, is_log_folder, read_log_table
 from .mat_io import read_mat_table
 from .model import MultiRecording, Recording
 from .npz_io import read_npz_table
+from .parquet_io import read_parquet_table
 from .repair import describe as describe_repair, describe_unwrapped, repair, unwrap_angles
 from .resample import describe as describe_resampling, to_uniform_grid
 from .validate import Context, check_signals
@@ -33,11 +35,17 @@ class _Table(Protocol):
 
 _LOADERS: dict[str, Callable[[Path], _Table]] = {
     ".csv": read_csv_table,
+    ".tsv": read_csv_table,
+    ".txt": read_csv_table,
+    ".dat": read_csv_table,
     ".npz": read_npz_table,
     ".mat": read_mat_table,
     ".h5": read_h5_table,
     ".hdf5": read_h5_table,
     ".mcap": read_log_table,
+    ".parquet": read_parquet_table,
+    ".json": read_json_table,
+    ".jsonl": read_json_table,
 }
 
 
