@@ -14,23 +14,27 @@ from mjjoint.report.build import write_diagnosis
 from mjjoint.diagnosis.pairs import PAIR_SHARE, compatible, paired
 
 
-def _screens(**costs):
-    return {k.replace("__", "+"): (c, None) for k, c in costs.items()}
+def _costs(**costs):
+    return {k.replace("__", "+"): c for k, c in costs.items()}
 
 
 def test_the_two_best_screens_that_can_share_a_model_are_paired():
     ref = SimpleNamespace(cost_test=1.0)
     keen = 1.0 - PAIR_SHARE * 0.1 - 1e-3  # just gains PAIR_SHARE of the relative gain
-    screens = _screens(dynamic_friction=0.90, load_dependent_friction=0.91, backlash=keen, input_offset=0.999)
+    screens = _costs(dynamic_friction=0.90, load_dependent_friction=0.91, backlash=keen, input_offset=0.999)
     # 2SEP and load-dependent friction cannot be in one model: the best goes with the next that can
     assert not compatible("dynamic_friction", "load_dependent_friction")
-    assert paired(screens, ref, 0.1) == ("dynamic_friction", "backlash")
+    assert paired(screens, set(screens), ref, 0.1) == ("dynamic_friction", "backlash")
+    # the second may be a screen left on the subset; the first is a finished one
+    assert paired(screens, {"backlash"}, ref, 0.1) == ("backlash", "dynamic_friction")
+    assert paired(screens, set(), ref, 0.1) is None
     # two bundles of one prerequisite are one gear, not two effects
     assert not compatible("linear_stiffness+backlash", "linear_stiffness+transmission_hysteresis")
-    assert paired(_screens(linear_stiffness__backlash=0.9, linear_stiffness__transmission_hysteresis=0.92), ref,
-                  0.1) is None
+    bundles = _costs(linear_stiffness__backlash=0.9, linear_stiffness__transmission_hysteresis=0.92)
+    assert paired(bundles, set(bundles), ref, 0.1) is None
     # a screen that explains too little on its own has no residual to be masked
-    assert paired(_screens(backlash=0.9, input_delay=1.0 - PAIR_SHARE * 0.1 + 1e-3), ref, 0.1) is None
+    weak = _costs(backlash=0.9, input_delay=1.0 - PAIR_SHARE * 0.1 + 1e-3)
+    assert paired(weak, set(weak), ref, 0.1) is None
 
 
 def test_a_backlash_and_a_current_loop_lag_masking_each_other_are_named_together(tmp_path):

@@ -391,7 +391,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         if choice.failed and options.pairs:
             from .pairs import pair_screen  # pairs builds on this module
             with phases("pair screen"):
-                pair = pair_screen(predictor, ref, screened, options, floor_cost, say)
+                pair = pair_screen(predictor, ref, screened, rest, options, floor_cost, say)
             if pair is not None and not pair.failed:
                 choice = pair  # its steps' screen says "together with" the other
         best, cand, gain = choice.best, choice.cand, choice.gain

@@ -3,7 +3,8 @@
 A backlash and a current-loop lag both act on the gear torque near reversals; with one of them
 missing, the other's screen fits part of its residual with the wrong shape and gains less than
 the acceptance rule asks, so forward selection, one effect a round, stops with both missing.
-When no single candidate passes, the two best finished screens are fitted together (each from
+When no single candidate passes, the best finished screen and the best other screen (finished,
+or left on the subset by the stage that ranks single additions) are fitted together (each from
 its own screen's values, the parameters both screens free) and judged as one addition:
 
 - against the model they extend, by the acceptance rule at half its level (a second look at the
@@ -33,38 +34,50 @@ def compatible(a: str, b: str) -> bool:
     return not set(pa) & set(pb) and not any(incompatible(x, y) for x in pa for y in pb)
 
 
-def paired(screened: dict[str, tuple[float, FitResult]], ref: FitResult, min_gain: float) -> tuple[str, str] | None:
-    """The two best finished screens that each gain PAIR_SHARE of ``min_gain`` against ``ref`` and
-    can be in one model; None if there are not two."""
-    keen = sorted((k for k, (c, _) in screened.items() if c <= ref.cost_test * (1.0 - PAIR_SHARE * min_gain)),
-                  key=lambda k: screened[k][0])
-    for i, a in enumerate(keen):
-        for b in keen[i + 1:]:
-            if compatible(a, b):
+def paired(costs: dict[str, float], finished: set[str], ref: FitResult, min_gain: float) -> tuple[str, str] | None:
+    """The best finished screen and the best other screen (finished or left on the subset: its
+    ``costs`` entry is then the subset's estimate) that each gain PAIR_SHARE of ``min_gain``
+    against ``ref`` and can be in one model; None if there are not two."""
+    keen = sorted((k for k, c in costs.items() if c <= ref.cost_test * (1.0 - PAIR_SHARE * min_gain)),
+                  key=lambda k: costs[k])
+    for a in keen:
+        if a not in finished:
+            continue
+        for b in keen:
+            if b != a and compatible(a, b):
                 return a, b
     return None
 
 
 def pair_screen(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],
-                options: DiagnoseOptions, floor_cost: float, say: Callable[[str], None]) -> _Choice | None:
-    """The pair of the round's screens to name together (module doc), or None."""
-    pair = paired(screened, ref, options.min_gain)
+                rest: dict[str, float], options: DiagnoseOptions, floor_cost: float,
+                say: Callable[[str], None]) -> _Choice | None:
+    """The pair of the round's screens to name together (module doc), or None. ``rest``: the
+    held-out costs estimated for the screens left on the subset (``loop._screen``); one of them
+    may be the second of a pair, started from the catalogue's values, since the stage that left
+    it there ranks single additions, not partners."""
+    costs = {**rest, **{k: c for k, (c, _) in screened.items()}}
+    pair = paired(costs, set(screened), ref, options.min_gain)
     if pair is None:
         return None
     a, b = pair
-    first, second = screened[a][1].structure, screened[b][1].structure
-    own = {p.name: second.values[p.name] for e in parts(b) for p in EFFECTS[e].params}
-    trial = with_candidate(first.at_timestep(min(first.nominal.timestep, second.nominal.timestep)), b, own,
-                           {k: v for k, v in second.settings.items() if k.split(".")[0] in parts(b)})
+    first = screened[a][1].structure
+    if b in screened:
+        second = screened[b][1].structure
+        own = {p.name: second.values[p.name] for e in parts(b) for p in EFFECTS[e].params}
+        trial = with_candidate(first.at_timestep(min(first.nominal.timestep, second.nominal.timestep)), b, own,
+                               {k: v for k, v in second.settings.items() if k.split(".")[0] in parts(b)})
+    else:
+        trial = with_candidate(first, b)
     freed = list(dict.fromkeys([*screened_params(a, ref.structure), *screened_params(b, ref.structure)]))
     key = a + PAIR + b
     cand = fit(predictor, trial, freed, max_iter=options.screen_iter)
     gain, consistency, failed = acceptance(predictor, ref, cand, parts(a)[-1], options, floor_cost, options.max_p / 2)
     for alone in (a, b):
-        share = 1.0 - cand.cost_test / screened[alone][0]
+        share = 1.0 - cand.cost_test / costs[alone]
         if share < options.min_gain:
             failed.append(f"{100 * share:.1f} % below {alone} alone < {100 * options.min_gain:.0f} %")
     say(f"  screened {key.replace(BUNDLE, ' + ')} together: held-out cost {ref.cost_test:.4g} -> {cand.cost_test:.4g} "
-        f"(alone {screened[a][0]:.4g}, {screened[b][0]:.4g})" + (f"; fails {', '.join(failed)}" if failed else
+        f"(alone {costs[a]:.4g}, {costs[b]:.4g}{'' if b in screened else ' on the subset'})" + (f"; fails {', '.join(failed)}" if failed else
                                                                   "; passes"))
     return _Choice(key, cand, gain, [], consistency, failed, False)
