@@ -77,7 +77,7 @@ def pair_screen(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[
         share = 1.0 - cand.cost_test / costs[alone]
         if share < options.min_gain:
             failed.append(f"{100 * share:.1f} % below {alone} alone < {100 * options.min_gain:.0f} %")
+    apart = f"alone {costs[a]:.4g}, {costs[b]:.4g}" + ("" if b in screened else " on the subset")
     say(f"  screened {key.replace(BUNDLE, ' + ')} together: held-out cost {ref.cost_test:.4g} -> {cand.cost_test:.4g} "
-        f"(alone {costs[a]:.4g}, {costs[b]:.4g}{'' if b in screened else ' on the subset'})" + (f"; fails {', '.join(failed)}" if failed else
-                                                                  "; passes"))
+        f"({apart})" + (f"; fails {', '.join(failed)}" if failed else "; passes"))
     return _Choice(key, cand, gain, [], consistency, failed, False)

@@ -74,10 +74,6 @@ def _stribeck(model: Model, v: dict[str, float]) -> Model:
                          shape=v.get(STRIBECK_SHAPE, StaticFriction.shape))
 
 
-def _stribeck_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
-    return [({}, {STRIBECK_SHAPE: shape}) for shape in STRIBECK_SHAPES]
-
-
 def _asym(model: Model, v: dict[str, float]) -> Model:
     return _set_friction(model, asym=_friction(model).fc * v["friction_asymmetry.ratio"])
 
@@ -97,10 +93,9 @@ def _hysteresis(model: Model, v: dict[str, float]) -> Model:
     return _set_transmission(model, hysteresis=bw)
 
 
-def _hysteresis_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
-    """Eq. 17's loop shape is not fitted but tried (HYSTERESIS_SHAPES): its admissible range
-    ends at the classic beta = gamma, where a fitted ratio would sit on its bound."""
-    return [({}, {HYSTERESIS_SHAPE: shape}) for shape in HYSTERESIS_SHAPES]
+def _tried(setting: str, values: tuple[float, ...]):
+    """``Effect.variants`` of a shape factor that is tried rather than fitted: one screen per value."""
+    return lambda conds, structure: [({}, {setting: v}) for v in values]
 
 
 def _read_hysteresis(model: Model) -> dict[str, float] | None:
@@ -228,7 +223,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("stribeck_friction", "break-away above the Coulomb level at low speed (Eq. 15)",
            (Param("stribeck_friction.ratio", 1.5, 1.0, 5.0, log=False),
             Param("stribeck_friction.vs", 0.5, 1e-3, 100.0, unit="rad/s", dim="speed")),
-           _stribeck, requires=("coulomb_friction",), variants=_stribeck_variants,
+           _stribeck, requires=("coulomb_friction",), variants=_tried(STRIBECK_SHAPE, STRIBECK_SHAPES),
            evidence=("stribeck", "reversal"), acts_under="reversal", plot="motor_velocity", direct_drive=True,
            term="friction",
            read=_friction_read(lambda f: {"stribeck_friction.ratio": f.fs / f.fc, "stribeck_friction.vs": f.vs,
@@ -288,7 +283,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
             Param("transmission_hysteresis.x_u", 2e-3, 1e-6, 0.1, unit="rad")),
            _hysteresis, requires=("linear_stiffness",), site="gear",
            evidence=("hysteresis", "small_delta"), plot="loops", term="hysteresis",
-           variants=_hysteresis_variants, read=_read_hysteresis),
+           variants=_tried(HYSTERESIS_SHAPE, HYSTERESIS_SHAPES), read=_read_hysteresis),
     Effect("transmission_damping", "viscous damping in the gear, D delta' (Eq. 18)",
            (Param("transmission_damping.d", 1.0, 1e-3, 1e3, unit="N m s/rad"),),
            lambda m, v: _set_transmission(m, damping=v["transmission_damping.d"]),

@@ -36,6 +36,7 @@ from ..assets.stability import check_model_stability
 from ..coupling.mjlog import mujoco_log_silenced
 from ..coupling.plugin import register_model
 from ..params import substeps
+from ..recordings.resample import STEP_TOLERANCE
 from ..physics.twosep import TwoSEP
 from ..sim import FULL, joint_indices, state_velocity
 from .structure import Structure
@@ -83,9 +84,6 @@ FLEX_LEAD = 0.1
 # Longest lead-in a window may ask for [s] (WindowDesign.lead): far beyond any dwell a lead-in is
 # for, and a bound on its cost.
 MAX_LEAD = 60.0
-# Time stamps within this share of a sample of the uniform grid are that grid, rounded
-# (printed to a few digits, or accumulated in float): ``Measured.from_recording``.
-GRID_ROUNDING = 1e-6
 
 
 @dataclass(frozen=True)
@@ -191,7 +189,7 @@ class Measured:
         # Samples already on the grid but for the stamps' rounding are taken as they are:
         # interpolating by fractions of 1e-13 would blend neighbours into values a quantised
         # sensor cannot read, and hide its step from the noise floor.
-        on_grid = np.max(np.abs(t - grid)) <= GRID_ROUNDING * dt
+        on_grid = np.max(np.abs(t - grid)) <= STEP_TOLERANCE * dt  # the reader's test of a uniform clock
         take = (lambda x: x) if on_grid else (lambda x: np.interp(grid, t, x))  # noqa: E731
         cols = {k: None if getattr(rec, k, None) is None else take(np.asarray(getattr(rec, k), float))
                 for k in names}
