@@ -56,6 +56,8 @@ class ModelFile:
     joint: JointParams | None = JointParams()
     sample_rate: float = Simulation.sample_rate
     mjcf: Path | None = None  # set for an .xml model; arm and joint are then None
+    # The sections the file states (the others hold defaults): where it came from, not what it describes.
+    given: frozenset[str] = dataclasses.field(default=frozenset(), compare=False)
 
     def __post_init__(self) -> None:
         Simulation(self.sample_rate)
@@ -153,6 +155,7 @@ def parse_model(data: Any) -> ModelFile:
         arm=from_section(ArmSpec, data.get("arm", {}), "arm"),
         joint=from_section(JointParams, data.get("joint", {}), "joint", extra=extra, **own),
         sample_rate=from_section(Simulation, data.get("simulation", {}), "simulation").sample_rate,
+        given=frozenset(data),
     )
 
 

@@ -20,9 +20,9 @@ from .assets import ArmSpec, DriveSpec
 from .assets.joint_view import single_joint_models
 from .assets.plant import input_range
 from .assets.serial_file import SerialArmFile, read_model_file
-from .identify.effects import SEED_EFFECTS, check_effects, plant_effects
-from .identify.from_model import structure_from_model
-from .identify.initial import Estimate, estimate
+from .identify.effects import FRICTION_V_EPS, SEED_EFFECTS, base_params, check_effects, plant_effects, plant_v_eps
+from .identify.from_model import stated, structure_from_model
+from .identify.initial import ARM_SLOPE_STEP, SLOPE_STEP, Estimate, estimate
 from .identify.structure import Structure
 from .identify.windows import Measured, Predictor, WindowDesign
 from .manipulator import arm_model, arm_predictor, load_note
@@ -60,7 +60,8 @@ class Inputs:
 
     A value per joint (``gear_ratio``, ``k_m``) is one number for every joint or a tuple of one
     per joint of a multi-joint recording. ``base``: effect names (``()``: the minimal model;
-    ``None``: the seed paper's full joint) or, instead, ``model`` (a model file or its path).
+    ``None``: the seed paper's full joint) and/or ``model`` (a model file or its path: its arm,
+    and its terms as effects unless ``base`` lists the effects).
     ``columns``, ``scales`` and ``allow_gaps`` apply when the recording is a path. Every plant
     starts from initial values and ranges estimated from the recording (``identify.initial``);
     a model file's values are the user's and stay.
@@ -120,8 +121,9 @@ def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[R
     if _several_joints(inputs, model):
         return _joint_problems(recording, inputs, model, say)
     notes: list[str] = []
+    keep: tuple[str, ...] = ()
     if model is not None:
-        base, notes = _from_model(model, inputs.gear_ratio, say)
+        base, notes, keep = _from_model(model, inputs.gear_ratio, say, inputs.base)
     else:
         if inputs.gear_ratio is None:
             raise ValueError(f"{say('gear_ratio')} N is required (or a {say('model')} file that gives it)")
@@ -133,7 +135,7 @@ def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[R
     measured, start, more = _aligned(measured, base.nominal)
     notes += more
     predictor = make_predictor(measured, inputs, say)
-    return Problem(_source(recording), predictor, _started(base, measured, start, model is not None), notes)
+    return Problem(_source(recording), predictor, _started(base, measured, start, keep), notes)
 
 
 def _aligned(measured: Measured, nominal) -> tuple[Measured, Estimate, list[str]]:
@@ -148,11 +150,11 @@ def _aligned(measured: Measured, nominal) -> tuple[Measured, Estimate, list[str]
     return dataclasses.replace(measured, theta=measured.theta + offset), start, [note]
 
 
-def _started(base: Structure, measured: Measured, start: Estimate, from_model: bool) -> Structure:
+def _started(base: Structure, measured: Measured, start: Estimate, keep: tuple[str, ...]) -> Structure:
     """``base`` with ranges and initial values from the recording (``start``: its ``identify.initial``
-    estimate); a model file's values are the user's and stay."""
+    estimate); the values named in ``keep`` (a model file's) are the user's and stay."""
     stepped = base.at_timestep(fitting_timestep(measured.rate, base.nominal.timestep))
-    started = stepped.started(start, keep=tuple(base.values) if from_model else ())
+    started = regularised(stepped.started(start, keep=keep), start)
     try:
         started.model_params()
     except ValueError as err:  # a fit from there would score nothing but unstable predictions
@@ -177,8 +179,20 @@ def drive_structure(effects, joint_type: str, measured: Measured) -> Structure:
     # The recorded force is what was applied: the amplifier's limit must not clip it.
     limit = input_range(measured.u, DriveSpec.k_m, DriveSpec.ctrl_limit)
     h = fitting_timestep(measured.rate, DriveSpec.timestep)
-    nominal = DriveSpec(joint_type=joint_type, ctrl_limit=limit, timestep=h, v_eps=start.v_eps(h, DriveSpec.v_eps))
-    return Structure.create(effects, nominal, 1.0, start=start)
+    nominal = DriveSpec(joint_type=joint_type, ctrl_limit=limit, timestep=h)
+    return regularised(Structure.create(effects, nominal, 1.0, start=start), start)
+
+
+def regularised(structure: Structure, start: Estimate) -> Structure:
+    """``structure`` with the motor friction's sign regularisation the recording's estimate needs
+    for a stable explicit step (``Estimate.v_eps``) where the plant's is too narrow; one the
+    structure already sets (a model file's) stays."""
+    default = plant_v_eps(structure.nominal)
+    arm = isinstance(structure.nominal, ArmSpec)
+    v_eps = start.v_eps(structure.nominal.timestep, default, ARM_SLOPE_STEP if arm else SLOPE_STEP)
+    if FRICTION_V_EPS in structure.settings or v_eps == default:
+        return structure
+    return dataclasses.replace(structure, settings={**structure.settings, FRICTION_V_EPS: v_eps})
 
 
 def _each(recording) -> list:
@@ -255,8 +269,16 @@ def _effects(base: tuple[str, ...] | None, say, known: tuple[str, ...] | None = 
         raise ValueError(f"{say('base')}: {exc}") from None
 
 
-def _from_model(model: ModelFile, gear_ratio: float | None, say) -> tuple[Structure, list[str]]:
-    return structure_from_model(model, gear_ratio, model_name=say("model"), gear_name=say("gear_ratio"))
+def _from_model(model: ModelFile, gear_ratio: float | None, say, base: tuple[str, ...] | None = None
+                ) -> tuple[Structure, list[str], tuple[str, ...]]:
+    """The model file's structure, notes on it, and the names of the values that are the user's
+    (``base``: only its effects, only the values the file states for them, and the arm's inertias)."""
+    effects = None if base is None else _effects(base, say)
+    structure, notes = structure_from_model(model, gear_ratio, effects=effects, model_name=say("model"),
+                                            gear_name=say("gear_ratio"))
+    if effects is None:
+        return structure, notes, tuple(structure.values)
+    return structure, notes, (*stated(model, effects)[1], *(p.name for p in base_params(structure.nominal)))
 
 
 def _drive_problem(recording, inputs: Inputs, say) -> Problem:
@@ -317,7 +339,7 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
     if max(joints) > n:
         raise ValueError(f"{say('joints')} {max(joints)}: {source} holds {n} joints (1-{n})")
     arm = None if inputs.arm is None else arm_model(inputs.arm, n, say("arm"))
-    bases, notes = _starting_models(inputs, model, n, say)
+    bases, keeps, notes = _starting_models(inputs, model, n, say)
     problems = {}
     for j in joints:
         base = bases[j - 1]
@@ -327,7 +349,7 @@ def _joint_problems(recording, inputs: Inputs, model, say, rec: Recording | Mult
             measured, start, more = _aligned(measured, base.nominal)
             notes += [(j, m) for m in more]
             predictor = make_predictor(measured, inputs, say)
-            started = _started(base, measured, start, model is not None)
+            started = _started(base, measured, start, keeps[j - 1])
             if arm is not None:
                 predictor = arm_predictor(measured, started, _arm_file(inputs.arm), arm, rec, j, inputs.design,
                                           inputs.fit_signals, _arm_name(inputs.arm))
@@ -355,26 +377,29 @@ def _arm_file(arm) -> SerialArmFile | None:
     return found if isinstance(found, SerialArmFile) else None
 
 
-def _starting_models(inputs: Inputs, model, n: int, say) -> tuple[list[Structure], list[tuple[int, str]]]:
-    """Each joint's starting structure, and (joint, note) pairs on what a model file could not hold."""
+def _starting_models(inputs: Inputs, model, n: int, say
+                     ) -> tuple[list[Structure], list[tuple[str, ...]], list[tuple[int, str]]]:
+    """Each joint's starting structure, the names of its values that are the user's, and
+    (joint, note) pairs on what a model file could not hold."""
     gears = _one_per_joint("gear_ratio", inputs.gear_ratio, n, say)
     if model is None:
         if any(g is None for g in gears):
             raise ValueError(f"{say('gear_ratio')} N[,M...] is required (or a {say('model')} file that gives it)")
         effects = _effects(inputs.base, say)
-        return [Structure.create(effects, ArmSpec(), g) for g in gears], []
+        return [Structure.create(effects, ArmSpec(), g) for g in gears], [()] * n, []
     if isinstance(model, SerialArmFile):
         if len(model.joints) != n:
             raise ValueError(f"{say('model')} describes {len(model.joints)} joints; the recording holds {n}")
         views = single_joint_models(model)
     else:
         views = [(model, [])] * n  # one single-joint model for every joint
-    bases, notes = [], []
+    bases, keeps, notes = [], [], []
     for j, ((single, view_notes), gear) in enumerate(zip(views, gears), start=1):
         try:
-            base, more = _from_model(single, gear, say)
+            base, more, keep = _from_model(single, gear, say, inputs.base)
         except ValueError as exc:
             raise ValueError(f"joint {j}: {exc}") from None
         bases.append(base)
+        keeps.append(keep)
         notes += [(j, m) for m in view_notes + more]
-    return bases, notes
+    return bases, keeps, notes

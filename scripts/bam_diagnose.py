@@ -82,8 +82,8 @@ def reproduce(logs, recs, window: float, fit_iter: int, say) -> list[dict]:
     """Per log: its own Coulomb-viscous fit, windowed and closed-loop errors; BAM's published models."""
     rows = []
     for log, rec in zip(logs, recs):
-        pred = bam.predictor([rec], window=window)
-        res = fit(pred, bam.structure(BASE, log), max_iter=fit_iter)
+        p = bam.problem([rec], BASE, log, window)
+        res = fit(p.predictor, p.base, max_iter=fit_iter)
         closed = bam.replay_errors(bam.replay(res.structure, log), log)
         row = {"log": log.name, "file": log.path.name, "kp": log.kp, "trajectory": log.trajectory,
                "windowed_nrmse_heldout": res.nrmse_test["theta"], "windowed_nrmse_train": res.nrmse_train["theta"],
@@ -131,12 +131,13 @@ def rest_holding(logs) -> list[dict]:
 
 def run_diagnosis(logs, recs, args, out: Path, say) -> dict:
     """Diagnose ``logs`` stacked; the report goes to ``out`` (``mjjoint diagnose``'s layout)."""
-    pred = bam.predictor(recs, window=args.window, seed=args.seed)
+    p = bam.problem(recs, BASE, logs[0], args.window, seed=args.seed)
+    pred = p.predictor
     say(f"diagnosing {len(recs)} logs: {len(pred.starts)} windows of {args.window} s, {len(pred.test)} held out")
     options = DiagnoseOptions(max_rounds=args.max_rounds, fit_iter=args.fit_iter, screen_iter=args.screen_iter,
                               candidates=tuple(args.candidates))
     start = time.perf_counter()
-    diag = diagnose(pred, bam.structure(BASE, logs[0]), options, progress=say)
+    diag = diagnose(pred, p.base, options, progress=say)
     seconds = time.perf_counter() - start
     source = f"BAM XL330 pendulum: {', '.join(lg.name for lg in logs)}"
     run = {"command": " ".join(sys.argv), "seconds": round(seconds, 1), "rollouts_full_length": round(diag.rollouts, 1),

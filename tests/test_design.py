@@ -92,9 +92,11 @@ def test_the_criterion_is_zero_between_identical_rivals_and_scales_as_one_over_n
 
 def test_design_cli_refuses_bad_input_in_one_line(tmp_path, capsys):
     rec = tmp_path / "rec.csv"
-    # a joint that moves (one at rest is refused before the options are looked at)
+    # a joint that moves (one at rest is refused before the options are looked at) and deflects
+    # (a theta of exactly q/N is one encoder's, whose deflection is not measured)
     rec.write_text("t,u,q,theta\n" + "".join(f"{k / 1000},{0.1 * math.sin(k / 159)},{10 * math.sin(k / 159)},"
-                                              f"{math.sin(k / 159) / 16}\n" for k in range(3000)))
+                                              f"{math.sin(k / 159) / 16 + 1e-4 * math.sin(k / 37)}\n"
+                                              for k in range(3000)))
     cases = [(["--rivals", "backlash"], "exactly two"),
              (["--rivals", "backlash,nonsense"], "unknown effect 'nonsense'"),
              (["--rivals", "backlash,transmission_hysteresis", "--max-torque", "-1"], "max_torque=-1"),

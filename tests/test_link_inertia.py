@@ -13,7 +13,6 @@ from mjjoint.assets import ArmSpec
 from mjjoint.assets.drive import DriveSpec
 from mjjoint.benchmark.cases import BASE, GEAR_RATIO, NOMINAL, make_case
 from mjjoint.rehearse import LabProgram, record
-from mjjoint.datasets.bam import ServoArm
 from mjjoint.identify.effects import base_params
 from mjjoint.identify.fit import fit
 from mjjoint.identify.structure import Structure
@@ -26,7 +25,6 @@ def test_each_plant_fits_one_link_inertia_parameter():
     names = lambda plant: [p.name for p in base_params(plant)]  # noqa: E731
     assert names(ArmSpec()) == ["inertia.motor", "mass.tip"]
     assert names(ArmSpec(tip_mass=0.0)) == ["inertia.motor", "inertia.link"]
-    assert names(ServoArm(segments=0)) == ["inertia.motor", "inertia.link"]  # logged mass, unlogged arm
     assert names(DriveSpec()) == ["inertia.motor"]
 
 

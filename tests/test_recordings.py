@@ -80,6 +80,26 @@ def test_text_tables_read_with_their_own_separator(tmp_path: Path, suffix, sep, 
     assert_same_signals(rec, read_recording(path, gear_ratio=100.0))
 
 
+@pytest.mark.parametrize("form, zone", [("%Y-%m-%d %H:%M:%S.%f", ""), ("%Y-%m-%dT%H:%M:%S.%f", "+02:00")])
+def test_a_time_column_of_iso_stamps_is_seconds_from_the_first(tmp_path: Path, form: str, zone: str) -> None:
+    """A logger's wall-clock stamps (pandas writes them so), across midnight, to the microsecond."""
+    from datetime import datetime, timedelta
+    rec = make_recording(tau=False)
+    first = datetime(2026, 5, 1, 23, 59, 59, 990000)
+    stamps = [(first + timedelta(seconds=float(t))).strftime(form) + zone for t in rec.t]
+    path = tmp_path / "log.csv"
+    path.write_text("time,u,q,theta\n" + "".join(f"{a},{u:.17g},{q:.17g},{th:.17g}\n" for a, u, q, th in
+                                                 zip(stamps, rec.u, rec.q, rec.theta)))
+    got = read_recording(path, columns={"t": "time"}, gear_ratio=100.0)
+    np.testing.assert_allclose(got.t, rec.t, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(got.q, rec.q)
+    bad = path.read_text().splitlines()
+    bad[5] = "12:00," + bad[5].split(",", 1)[1]
+    path.write_text("\n".join(bad) + "\n")
+    with pytest.raises(RecordingError, match="line 6, column 'time': '12:00' is not a time stamp like the first"):
+        read_recording(path, columns={"t": "time"}, gear_ratio=100.0)
+
+
 @pytest.mark.parametrize("tau", [True, False])
 def test_csv_round_trip_is_exact(tmp_path: Path, tau: bool) -> None:
     rec = make_recording(tau=tau)

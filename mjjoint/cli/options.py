@@ -55,7 +55,9 @@ def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
     r = p.add_argument_group("recording")
     r.add_argument("--gear-ratio", type=numbers, metavar="N",
                    help="gear ratio (required unless --model gives it); N1,N2,... one per joint")
-    r.add_argument("--columns", metavar="MAP", help="file names of the signals, e.g. t=time,u=cur,q=qm,theta=ql")
+    r.add_argument("--columns", metavar="MAP", help="file names of the signals, e.g. t=time,u=cur,q=qm,theta=ql; a source may be an "
+                        "expression of the file's values, u='0.338/288.35*cur', q='288.35*pos' "
+                        "(docs/recordings.md)")
     r.add_argument("--scales", metavar="MAP", help="factors to SI, e.g. q=deg,theta=deg,u=2.5")
     r.add_argument("--allow-gaps", action="store_true",
                    help="interpolate across time steps longer than 5 median periods, and across samples "
@@ -65,11 +67,13 @@ def add_problem_options(p: argparse.ArgumentParser, default_out: Path) -> None:
     r.add_argument("--joint", type=joint_numbers, metavar="J[,K]",
                    help="joints of a multi-joint recording to work on (default: all)")
     m = p.add_argument_group("starting model (default: the seed paper's full joint)")
-    x = m.add_mutually_exclusive_group()
-    x.add_argument("--model", type=Path, metavar="FILE",
-                   help="model file (.toml/.yaml): its terms become effects, its values initial values; "
-                        "a [[joint]] file gives each joint of a multi-joint recording its own")
-    x.add_argument("--base", metavar="LIST", help="comma list of effect names ('minimal': none)")
+    m.add_argument("--model", type=Path, metavar="FILE",
+                   help="model file (.toml/.yaml): its arm (bodies, timestep); its terms become effects, "
+                        "its values initial values; a [[joint]] file gives each joint of a multi-joint "
+                        "recording its own")
+    m.add_argument("--base", metavar="LIST",
+                   help="comma list of effect names ('minimal': none); with --model, the effects to start "
+                        "from on the model's arm (the file's values where it gives them)")
     m.add_argument("--arm", type=Path, metavar="FILE",
                    help="the whole arm of a multi-joint recording ([[joint]] model file or MJCF with an "
                         "mjjoint.joint per joint): MuJoCo computes the inertia, Coriolis and gravity forces "

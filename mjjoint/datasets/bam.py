@@ -47,10 +47,12 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from ..assets import ArmSpec
+from ..identify.effects import FRICTION_V_EPS
 from ..identify.structure import Structure
-from ..identify.windows import Measured, Predictor, WindowDesign
-from ..params import check
-from ..physics.stribeck import StaticFriction
+from ..identify.windows import WindowDesign
+from ..joint import JointParams
+from ..modelfile import ModelFile
+from ..problem import Inputs, Problem, load_problem
 from ..recordings import Recording, RecordingError
 from ..sim import joint_indices
 from .paths import dataset_dir
@@ -269,79 +271,35 @@ def read_bam(path: str | Path, motor: Motor = XL330_M6, back_emf: bool = True) -
 
 # ---- nominal model -------------------------------------------------------------------------
 
-# Orders of the XL330's motor-side torque and speed relative to the shipped arm's (whose effect
-# ranges are set for a 400 W motor: ~1.3 N m rated, ~325 rad/s idling): stall torque
-# kt vin / (R N) = 3.8e-3 N m; no-load speed N vin / kt = 6300 rad/s.
-SERVO_FORCE_SCALE = 3e-3
-SERVO_SPEED_SCALE = 20.0
-# Friction sign regularisation on the motor [rad/s]: 0.017 rad/s at the output, about one
-# encoder count (1.5 mrad) per 0.1 s. The arm's 1 rad/s on a 2.5e-8 kg m^2 rotor would make
-# Coulomb friction explicit-unstable above a 0.25 ms step (fc h / (v_eps J) < 1.5).
+# Friction sign regularisation on the motor [rad/s] for replays at given values (BAM's): 0.017
+# rad/s at the output, about one encoder count (1.5 mrad) per 0.1 s. The arm's 1 rad/s on a
+# 2.5e-8 kg m^2 rotor would make BAM's Coulomb level explicit-unstable above a 0.25 ms step.
+# Fits take theirs from the recording (``problem``: ``coulomb_friction.v_eps``).
 SERVO_V_EPS = 5.0
-# 0.5 ms: 10 steps per 5 ms sample; stable for motor friction up to 1.5 J v_eps / h ~ 3.8e-4
-# N m on the nominal rotor (0.11 N m at the output, six times BAM's m1 Coulomb level); the
-# limit grows with the fitted rotor inertia, and unstable candidates score as worst.
+# 0.5 ms: 10 steps per 5 ms sample.
 SERVO_TIMESTEP = 5e-4
 # The arm is not logged (BAM's Pendulum reads "arm_mass", which these logs lack): a light
-# 0.1 m arm of 10 g; hub: the output horn and screws, 1e-5 kg m^2. Fitted inertia.link
-# (``ServoArm.link_parameter``) and gravity.g absorb both.
+# 0.1 m arm of 10 g; hub: the output horn and screws, 1e-5 kg m^2. The fitted tip mass and
+# gravity.g absorb both. examples/xl330_pendulum.toml states the same bodies for the CLI.
 ROD_MASS = 0.01
 HUB_INERTIA = 1e-5
 
 
-@dataclass(frozen=True)
-class ServoArm(ArmSpec):
-    """The pendulum arm on a servo: ArmSpec with the servo's parameter scales and friction regularisation.
-
-    ``scales`` sets the effect ranges in the servo's units (as ``DriveSpec`` does); ``v_eps``
-    is applied by ``ServoStructure``.
-    """
-
-    force_scale: float = SERVO_FORCE_SCALE
-    speed_scale: float = SERVO_SPEED_SCALE
-    v_eps: float = SERVO_V_EPS
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        for name in ("force_scale", "speed_scale", "v_eps"):
-            check(name, getattr(self, name), 0.0, lo_open=True)
-
-    @property
-    def scales(self) -> dict[str, float]:
-        return {"force": self.force_scale, "speed": self.speed_scale, "position": self.speed_scale * 1.0}
-
-    @property
-    def link_parameter(self) -> str:
-        """The hub inertia: the logged mass is known, the unlogged arm can only add to it."""
-        return "inertia.link"
-
-
-class ServoStructure(Structure):
-    """A Structure whose motor friction uses the plant's sign regularisation ``v_eps``."""
-
-    def model_params(self):
-        arm, joint = super().model_params()
-        f = joint.friction
-        if isinstance(f, StaticFriction) and isinstance(arm, ServoArm):
-            joint = dataclasses.replace(joint, friction=dataclasses.replace(f, v_eps=arm.v_eps))
-        return arm, joint
-
-
-def nominal_arm(log: ServoLog | None = None, motor: Motor = XL330_M6, timestep: float = SERVO_TIMESTEP) -> ServoArm:
+def nominal_arm(log: ServoLog | None = None, motor: Motor = XL330_M6, timestep: float = SERVO_TIMESTEP) -> ArmSpec:
     """The pendulum of ``log`` (mass, length; defaults 0.49 kg, 0.1 m) on the XL330.
 
-    The rotor inertia is BAM's armature / N^2 (2.5e-8 kg m^2); k_m = kt / N, so the actuator's
-    control is the motor current in A.
+    The rotor inertia is BAM's armature / N^2 (2.5e-8 kg m^2); u is the motor torque (k_m 1).
     """
     mass, length = (0.49, 0.1) if log is None else (log.mass, log.length)
-    return ServoArm(segments=0, rod_length=length, rod_mass=ROD_MASS, tip_mass=mass, hub_inertia=HUB_INERTIA,
-                    motor_inertia=motor.armature / GEAR_RATIO ** 2, k_m=motor.kt / GEAR_RATIO, gravity=9.81,
-                    timestep=timestep)
+    return ArmSpec(segments=0, rod_length=length, rod_mass=ROD_MASS, tip_mass=mass, hub_inertia=HUB_INERTIA,
+                   motor_inertia=motor.armature / GEAR_RATIO ** 2, k_m=1.0, max_current=1.0, gravity=9.81,
+                   timestep=timestep)
 
 
-def structure(effects, log: ServoLog | None = None, motor: Motor = XL330_M6, values=None) -> ServoStructure:
-    """A model structure over the nominal pendulum with the rigid gear."""
-    return ServoStructure.create(effects, nominal_arm(log, motor), GEAR_RATIO, values)
+def structure(effects, log: ServoLog | None = None, motor: Motor = XL330_M6, values=None) -> Structure:
+    """The pendulum with the rigid gear at ``values`` (BAM's, ``bam_values``, for replays), its
+    friction's sign regularised at SERVO_V_EPS; fits start from ``problem`` instead."""
+    return Structure.create(effects, nominal_arm(log, motor), GEAR_RATIO, values, {FRICTION_V_EPS: SERVO_V_EPS})
 
 
 def bam_values(motor: Motor) -> dict[str, float]:
@@ -353,40 +311,16 @@ def bam_values(motor: Motor) -> dict[str, float]:
 
 # ---- windows over several logs ---------------------------------------------------------------
 
-class EncoderPredictor(Predictor):
-    """Windows of one encoder's recordings: the deflection is not measured, only q is compared."""
-
-    def __init__(self, measured: Measured, design: WindowDesign, nthread: int | None = None):
-        super().__init__(measured, design, nthread)
-        self.meas["delta"] = None
-
-
-CUT = ("t", "u", "q", "theta", "qd", "thetad")  # a log's per-sample arrays (no tau)
-
-
-def stacked_measured(recordings: list[Recording], window: float) -> Measured:
-    """Several logs end to end on one time line, each cut to whole windows of ``window`` s.
-
-    ``Predictor`` tiles each log afresh from its join (``Measured.joins``), so with every log a
-    whole number of windows long no window crosses a join; each log's velocities, paths,
-    internal-state histories and (delayed) input start afresh (``Measured.stack``).
-    """
-    parts = []
-    for rec in recordings:
-        m = Measured.from_recording(rec, GEAR_RATIO)
-        n = round(window * m.rate)
-        keep = (len(m.t) // n) * n
-        if keep < n:
-            raise ValueError(f"{rec.meta.get('source', 'recording')}: shorter than one {window} s window")
-        parts.append(dataclasses.replace(m, **{k: getattr(m, k)[:keep] for k in CUT}))
-    return Measured.stack(parts)
-
-
-def predictor(recordings: list[Recording], window: float = 0.2, warmup: float = 0.02, seed: int = 0,
-              nthread: int | None = None) -> EncoderPredictor:
-    """Windowed k-step-ahead prediction over one or more logs (q only)."""
+def problem(recordings: list[Recording], effects, log: ServoLog | None = None, window: float = 0.2,
+            warmup: float = 0.02, seed: int = 0) -> Problem:
+    """``effects`` on the pendulum of ``log`` against ``recordings`` stacked (no window spans two),
+    as ``mjjoint diagnose --model examples/xl330_pendulum.toml --base EFFECTS --fit-signals q``
+    takes them: the bodies the user's, the effects started from the recording's estimates, and
+    only q scored (theta is q/N: ``Measured.link_encoder``)."""
+    gear = dataclasses.replace(JointParams().transmission, gear_ratio=GEAR_RATIO)
+    model = ModelFile(arm=nominal_arm(log), joint=JointParams(transmission=gear), given=frozenset({"arm", "transmission"}))
     design = WindowDesign(length=window, warmup=warmup, seed=seed)
-    return EncoderPredictor(stacked_measured(recordings, window), design, nthread)
+    return load_problem(list(recordings), Inputs(model=model, base=tuple(effects), fit_signals=("q",), design=design))
 
 
 # ---- closed-loop replay -----------------------------------------------------------------------

@@ -129,7 +129,8 @@ def judged(predictor: Predictor, result: FitResult) -> tuple[FitResult, Floor, b
 
 
 def measured_signals(m: Measured) -> dict[str, np.ndarray]:
-    return {k: v for k, v in (("q", m.q), ("theta", m.theta), ("delta", m.delta), ("tau", m.tau)) if v is not None}
+    delta = m.delta if m.link_encoder else None
+    return {k: v for k, v in (("q", m.q), ("theta", m.theta), ("delta", delta), ("tau", m.tau)) if v is not None}
 
 
 def noise_floor(predictor: Predictor, structure: Structure | None = None, seed: int = 0) -> Floor:
@@ -160,7 +161,8 @@ def _twin_floor(predictor: Predictor, structure: Structure, noise: dict, quantum
     if not all(np.all(np.isfinite(run[s])) for s in ("q", "theta", "tau") if getattr(m, s) is not None):
         return {}, "the final model's free run of the recording diverged: no twin"
     rng = np.random.default_rng(seed)
-    present = [s for s in ("q", "theta", "tau") if getattr(m, s) is not None]
+    # One encoder's theta is q/N: its twin's too, drawn with q's noise.
+    present = [s for s in ("q", "theta", "tau") if getattr(m, s) is not None and (s != "theta" or m.link_encoder)]
     analog = {s: _analog_noise(run[s], noise[s], quantum[s], m) for s in present}
 
     def recorded(s: str) -> np.ndarray:
@@ -170,7 +172,7 @@ def _twin_floor(predictor: Predictor, structure: Structure, noise: dict, quantum
     for _ in range(TWIN_DRAWS):
         drawn = {s: recorded(s) for s in present}
         # A direct drive's recording has no theta: a placeholder, which from_recording ignores.
-        theta = drawn.get("theta", np.zeros_like(m.t))
+        theta = drawn.get("theta", drawn["q"] / m.gear_ratio if m.theta is not None else np.zeros_like(m.t))
         tau = drawn.get("tau")
         # Stacked recordings stay apart: velocities taken across a join would start a window
         # there with the jump between two recordings as its speed.

@@ -34,8 +34,22 @@ def _friction(model: Model) -> StaticFriction | TwoSEP:
     """The model's motor friction, or none yet: zero levels, the plant's sign regularisation."""
     if model[1].friction is not None:
         return model[1].friction
-    v_eps = model[0].v_eps if isinstance(model[0], DriveSpec) else StaticFriction.v_eps
-    return StaticFriction(fc=0.0, fs=0.0, sigma=0.0, v_eps=v_eps)
+    return StaticFriction(fc=0.0, fs=0.0, sigma=0.0, v_eps=plant_v_eps(model[0]))
+
+
+def plant_v_eps(nominal: Plant) -> float:
+    """The motor friction's sign regularisation a plant gives it (a drive's XML, else the term's)."""
+    return nominal.v_eps if isinstance(nominal, DriveSpec) else StaticFriction.v_eps
+
+
+# The motor friction's sign regularisation [speed], a setting: the plant's unless a recording of
+# a light motor with strong friction needs a wider one for the explicit step to stay stable
+# (``initial.Estimate.v_eps``).
+FRICTION_V_EPS = "coulomb_friction.v_eps"
+
+
+def _coulomb(model: Model, v: dict[str, float]) -> Model:
+    return _set_friction(model, fc=v["coulomb_friction.fc"], **({"v_eps": v[FRICTION_V_EPS]} if FRICTION_V_EPS in v else {}))
 
 
 def _set_friction(model: Model, **changes) -> Model:
@@ -212,8 +226,7 @@ MOTOR_SIGN = ("coulomb", "reversal")
 EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("coulomb_friction", "constant motor friction opposing motion, Fc sgn(w)",
            (Param("coulomb_friction.fc", 0.05, 1e-4, 5.0, unit="N m", dim="force"),),
-           lambda m, v: _set_friction(m, fc=v["coulomb_friction.fc"]),
-           evidence=MOTOR_SIGN, plot="motor_velocity", direct_drive=True, term="friction",
+           _coulomb, evidence=MOTOR_SIGN, plot="motor_velocity", direct_drive=True, term="friction",
            read=_friction_read(lambda f: {"coulomb_friction.fc": f.fc})),
     Effect("viscous_friction", "motor friction proportional to speed, sigma w",
            (Param("viscous_friction.sigma", 1e-4, 1e-7, 1e-1, unit="N m s/rad", dim="force/speed"),),

@@ -55,9 +55,11 @@ CUTOFF = 50.0
 CUTOFF_NYQUIST = 0.8  # at most this share of the Nyquist frequency
 # A directly estimated parameter may move this many decades either way in the fit.
 DECADES = 3.0
-# The regularised Coulomb slope's step c h the drive models are kept to: the shipped drive's
-# (linear_drive.xml: 0.21), ten times inside the explicit limit of 2.
+# The regularised Coulomb slope's step c h = Fc h / (v_eps J) a model is kept to: its plant's
+# shipped model's, inside the explicit limit of 2. The drive's (linear_drive.xml: 0.21); the
+# arm's (its 0.08 N m Coulomb level on the 5e-5 kg m^2 rotor at 0.5 ms, v_eps 1 rad/s: 0.8).
 SLOPE_STEP = 0.2
+ARM_SLOPE_STEP = 0.8
 # A resonance counts as visible when the response's peak stands this far above its median, at
 # frequencies where the input's power is above EXCITED of its peak (elsewhere H is noise).
 PEAK_RATIO = 5.0
@@ -93,14 +95,14 @@ class Estimate:
         amp = {"force": self.force, "speed": self.speed, "position": self.position}
         return {k: 10.0 ** round(math.log10(amp[k] / CATALOGUE_ORDERS[k])) for k in CATALOGUE_ORDERS}
 
-    def v_eps(self, timestep: float, default: float) -> float:
+    def v_eps(self, timestep: float, default: float, slope_step: float = SLOPE_STEP) -> float:
         """Friction sign regularisation [speed] for a model of this recording: ``default`` unless
-        the estimated Coulomb slope Fc / (v_eps J) would be stiffer than SLOPE_STEP / timestep
-        (a light motor with strong friction is explicitly unstable at the shipped drive's)."""
+        the estimated Coulomb slope Fc / (v_eps J) would be stiffer than ``slope_step`` / timestep
+        (a light motor with strong friction is explicitly unstable at its plant's shipped v_eps)."""
         fc, j = self.values.get("coulomb_friction.fc"), self.values.get("inertia.motor")
         if fc is None or j is None:
             return default
-        return max(default, fc * timestep / (SLOPE_STEP * j))
+        return max(default, fc * timestep / (slope_step * j))
 
     def param(self, p: Param) -> Param:
         """``p`` (already scaled) started at its estimate, bounds DECADES either side."""

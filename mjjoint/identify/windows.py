@@ -122,6 +122,9 @@ class Measured:
     gear_ratio: float
     rate: float
     joins: tuple[int, ...] = ()  # samples where a further recording begins (stacked logs)
+    # False where theta is the motor angle over the gear (a servo with one encoder, its theta
+    # taken as q/N): the deflection is then not measured, so neither scored nor reported.
+    link_encoder: bool = True
 
     @property
     def delta(self) -> np.ndarray | None:
@@ -196,7 +199,8 @@ class Measured:
         cols.setdefault("theta", None)
         deriv = lambda x: None if x is None else velocity(x, dt)  # noqa: E731
         return cls(t=grid, qd=deriv(cols["q"]), thetad=deriv(cols["theta"]),
-                   gear_ratio=float(gear_ratio), rate=1.0 / dt, **cols)
+                   gear_ratio=float(gear_ratio), rate=1.0 / dt,
+                   link_encoder=not _one_encoder(cols["q"], cols["theta"], gear_ratio), **cols)
 
     @classmethod
     def stack(cls, parts: Sequence["Measured"]) -> "Measured":
@@ -212,12 +216,28 @@ class Measured:
                 raise ValueError(f"recordings to stack must hold the same signals (theta, tau): recording {k} differs")
             if m.gear_ratio != first.gear_ratio:
                 raise ValueError(f"recordings to stack must share one gear ratio: {first.gear_ratio:g}, {m.gear_ratio:g}")
+            if m.link_encoder != first.link_encoder:
+                raise ValueError(f"recordings to stack must all have a link encoder or none: in recording {k} "
+                                 f"theta {'is' if first.link_encoder else 'is not'} q/N")
         cat = lambda k: None if getattr(first, k) is None else np.concatenate([getattr(m, k) for m in parts])  # noqa: E731
         offsets = np.cumsum([0, *(len(m.t) for m in parts)])
         joins = tuple(int(o + j) for m, o in zip(parts, offsets) for j in (*m.joins, len(m.t)))[:-1]
         return cls(t=first.t[0] + np.arange(offsets[-1]) / first.rate, u=cat("u"), q=cat("q"), theta=cat("theta"),
                    tau=cat("tau"), qd=cat("qd"), thetad=cat("thetad"), gear_ratio=first.gear_ratio,
-                   rate=first.rate, joins=joins)
+                   rate=first.rate, joins=joins, link_encoder=first.link_encoder)
+
+
+# Relative agreement of theta with q/N past which they are one encoder's angle, not two: two
+# encoders differ by the gear's deflection, orders above a float's rounding.
+ONE_ENCODER = 1e-9
+
+
+def _one_encoder(q: np.ndarray, theta: np.ndarray | None, gear_ratio: float) -> bool:
+    """Whether ``theta`` is ``q / gear_ratio`` to rounding (module doc of ``Measured.link_encoder``)."""
+    if theta is None:
+        return False
+    scale = max(float(np.max(np.abs(theta))), float(np.max(np.abs(q))) / gear_ratio)
+    return bool(np.max(np.abs(q / gear_ratio - theta)) <= ONE_ENCODER * scale)
 
 
 def noise_std(x: np.ndarray, rate: float, per_segment=None) -> float:
@@ -369,7 +389,8 @@ class Predictor:
         idx = self.samples
         m = self.m
         pick = lambda x: None if x is None else x[idx]  # noqa: E731
-        return {"q": m.q[idx], "delta": pick(m.delta), "theta": pick(m.theta), "tau": pick(m.tau)}
+        return {"q": m.q[idx], "delta": pick(m.delta) if m.link_encoder else None, "theta": pick(m.theta),
+                "tau": pick(m.tau)}
 
     @property
     def signals(self) -> tuple[str, ...]:

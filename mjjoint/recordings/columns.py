@@ -19,7 +19,6 @@ DEG = math.pi / 180
 ALLOWED = "t, u, q, theta, tau (or per joint: u1, q1, theta1, tau1, u2, ...)"
 
 _PER_JOINT = re.compile(r"(u|q|theta|tau)([1-9][0-9]*)")
-_ITEM_SEP = re.compile(r",(?![^\[]*\])")  # a comma outside brackets: data[:, 3] is one item
 
 
 def split_joint(name: str) -> tuple[str, int | None]:
@@ -32,12 +31,23 @@ def is_canonical(name: str) -> bool:
     return name in SIGNALS or _PER_JOINT.fullmatch(name) is not None
 
 
+def _items(text: str) -> list[str]:
+    """``text`` split at the commas outside brackets: ``data[:, 3]`` and ``clip(x, -1, 1)`` are one item."""
+    items, depth, start = [], 0, 0
+    for i, c in enumerate(text):
+        depth += (c in "([") - (c in ")]")
+        if c == "," and depth == 0:
+            items.append(text[start:i])
+            start = i + 1
+    return [*items, text[start:]]
+
+
 def name_value_pairs(text: str, option: str, example: str) -> Iterator[tuple[str, str]]:
     """The name=value items of a comma list such as an option's value, each name once."""
     if not text.strip():
         raise RecordingError(f"{option}: empty; expected e.g. {example}")
     seen: set[str] = set()
-    for item in _ITEM_SEP.split(text):
+    for item in _items(text):
         key, sep, value = (s.strip() for s in item.partition("="))
         if not (sep and key and value):
             raise RecordingError(f"{option}: {quote(item.strip())} is not of the form name=value (e.g. {example})")

@@ -4,7 +4,9 @@ sample per line.
 The separator is the header's: a comma, else a tab, else a semicolon, else runs of spaces.
 Lines starting with ``#`` or ``%`` are comments (instrument and MATLAB exports put notes
 before the header). Where the separator is not a comma, a decimal comma (``1,25``, as
-spreadsheets in many locales write numbers) reads as a decimal point.
+spreadsheets in many locales write numbers) reads as a decimal point. A time column of ISO 8601
+stamps (``2024-05-01 12:00:00.125``, as loggers and pandas write them) is seconds from its first
+stamp, to the microsecond.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from __future__ import annotations
 import csv
 import re
 from dataclasses import dataclass
+from datetime import datetime, timedelta
 from pathlib import Path
 from typing import ClassVar
 
@@ -42,6 +45,8 @@ class CsvTable:
         if name not in self.names:
             raise RecordingError(f"{self.file}: column {quote(name)} (for {role}) not found; header has {listing(self.names)}")
         k = self.names.index(name)
+        if role == "t" and self.rows and _stamp(self.rows[0][k]) is not None and not is_number(self.rows[0][k]):
+            return self._seconds(k, name)
         values = np.empty(len(self.rows))
         for i, row in enumerate(self.rows):
             try:
@@ -51,6 +56,30 @@ class CsvTable:
                     f"{self.file}: line {self.lines[i]}, column {quote(name)}: {quote(row[k])} is not a number"
                 ) from None
         return values
+
+    def _seconds(self, k: int, name: str) -> np.ndarray:
+        """A column of ISO 8601 time stamps as seconds from the first, to the microsecond."""
+        first = _stamp(self.rows[0][k])
+        values = np.empty(len(self.rows))
+        for i, row in enumerate(self.rows):
+            stamp = _stamp(row[k])
+            try:
+                values[i] = (stamp - first) / _MICROSECOND * 1e-6
+            except TypeError:  # not a stamp, or one with a time zone where the first has none
+                raise RecordingError(f"{self.file}: line {self.lines[i]}, column {quote(name)}: {quote(row[k])} is "
+                                     f"not a time stamp like the first one, {quote(self.rows[0][k])}") from None
+        return values
+
+
+_MICROSECOND = timedelta(microseconds=1)
+
+
+def _stamp(field: str) -> datetime | None:
+    """An ISO 8601 date and time (``2024-05-01 12:00:00.125``, ``...T12:00:00Z``), or None."""
+    try:
+        return datetime.fromisoformat(field.strip())
+    except ValueError:
+        return None
 
 
 def read_csv_table(path: Path) -> CsvTable:

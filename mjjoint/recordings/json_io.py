@@ -8,7 +8,8 @@ Forms read (names in ``--columns`` are dotted paths, ``[:, j]`` picks from a vec
   ``{"kp": 400, "entries": [{"timestamp": 0.0, "position": 0.1}, ...]}``): the records'
   arrays as ``entries.timestamp``, ``entries.position``.
 Numbers and booleans are values; a key a record lacks, or null, is NaN (``--allow-gaps``
-interpolates it); scalars and strings are not signals.
+interpolates it); strings are left out. A number outside the records (a servo's ``kp``) is a
+scalar: not a signal, but a constant an expression in ``--columns`` may use (``recordings.derived``).
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ def read_json_table(path: Path) -> ArrayTable:
         raise RecordingError(f"{path}: not a readable JSON file ({type(exc).__name__}: {exc})") from None
     arrays: dict[str, np.ndarray] = {}
     _collect(data, "", arrays)
-    if not arrays:
+    if not any(a.shape[0] > 1 for a in arrays.values()):
         raise RecordingError(f"{path}: no list of samples found (expected a list of records or arrays of numbers)")
     return ArrayTable(str(path), arrays)
 
@@ -53,6 +54,8 @@ def _collect(node, path: str, arrays: dict[str, np.ndarray]) -> None:
         column = _numbers(node)
         if column is not None:
             arrays[path] = column
+    elif isinstance(node, (bool, int, float)) and path and math.isfinite(node):
+        arrays[path] = np.array([float(node)])
 
 
 def _join(path: str, key: str) -> str:

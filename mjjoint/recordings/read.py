@@ -11,6 +11,7 @@ import numpy as np
 
 from .columns import ALLOWED, OPTIONAL, SIGNALS, check_column_map, check_scales, expand_scales, resolve_columns, split_joint
 from .csv_io import read_csv_table
+from .derived import parse as parse_expression, read_columns
 from .errors import RecordingError, listing
 from .h5_io import read_h5_table
 from .json_io import read_json_table
@@ -149,9 +150,14 @@ def read_signals(
     factors = expand_scales(scales, sources, where)
     merged = None
     if isinstance(table, LogTable):
+        derived = [name for name, source in sources.items() if parse_expression(source) is not None]
+        if derived:
+            raise RecordingError(f"{where}: {derived[0]}={sources[derived[0]]!r}: a robot log's signals are "
+                                 "topic fields; expressions are read from files only")
         raw, merged = table.merged(sources, timestep, allow_gaps)
+        used = set(sources.values())
     else:
-        raw = {name: table.column(source, name) for name, source in sources.items()}
+        raw, used = read_columns(sources, table.column, where)
     signals = {}
     for name, x in raw.items():
         x = x * factors.get(name, 1.0)
@@ -159,7 +165,7 @@ def read_signals(
     # After the lookups above, so that a mistyped mapping is reported as such, not as an unused column.
     # Unknown names are refused (a mistyped signal name would go unnoticed), unless --columns
     # names the columns to use: a log's other columns are then left out, with a note.
-    extra = [name for name in table.names if name not in sources.values()] if table.strict else []
+    extra = [name for name in table.names if name not in used] if table.strict else []
     if extra and not (allow_extra or columns):
         raise RecordingError(
             f"{where}: unknown column(s) {listing(extra)}; allowed: {ALLOWED}; name the columns to use with "
