@@ -169,6 +169,9 @@ def make_predictor(measured: Measured, inputs: Inputs, say=str) -> Predictor:
     missing = [s for s in signals or () if getattr(measured, s) is None]
     if missing:
         raise ValueError(f"{say('fit_signals')}: the recording has no {missing[0]} (for this plant)")
+    if "delta" in (signals or ()) and not measured.link_encoder:
+        raise ValueError(f"{say('fit_signals')}: theta is q/N, one encoder's angle, so the deflection is not "
+                         "measured: score q alone")
     return Predictor(measured, inputs.design, fit_signals=signals)
 
 

@@ -106,3 +106,9 @@ def test_one_encoders_deflection_is_neither_scored_nor_reported_and_the_fit_reco
     assert result.nrmse_test["q"] < 0.05
     for name in ("coulomb_friction.fc", "viscous_friction.sigma"):
         assert result.structure.values[name] == pytest.approx(TRUE[name], rel=0.15), name
+
+
+def test_scoring_the_deflection_of_one_encoder_is_refused_in_one_line(servo):
+    log, model = servo
+    with pytest.raises(ValueError, match="theta is q/N, one encoder's angle"):
+        load_problem(log, Inputs(model=model, base=BASE, columns=COLUMNS, fit_signals=("q", "delta")))
