@@ -129,8 +129,8 @@ def judged(predictor: Predictor, result: FitResult) -> tuple[FitResult, Floor, b
 
 
 def measured_signals(m: Measured) -> dict[str, np.ndarray]:
-    delta = m.delta if m.link_encoder else None
-    return {k: v for k, v in (("q", m.q), ("theta", m.theta), ("delta", delta), ("tau", m.tau)) if v is not None}
+    return {k: v for k, v in (("q", m.q), ("theta", m.theta), ("delta", m.measured_delta), ("tau", m.tau))
+            if v is not None}
 
 
 def noise_floor(predictor: Predictor, structure: Structure | None = None, seed: int = 0) -> Floor:

@@ -131,6 +131,11 @@ class Measured:
         return None if self.theta is None else self.q / self.gear_ratio - self.theta
 
     @property
+    def measured_delta(self) -> np.ndarray | None:
+        """The deflection as a sensor pair measured it: None with one encoder (``link_encoder``)."""
+        return self.delta if self.link_encoder else None
+
+    @property
     def segments(self) -> list[tuple[int, int]]:
         """(first, end) sample of each recording stacked here (one pair for a single recording)."""
         bounds = [0, *self.joins, len(self.t)]
@@ -233,7 +238,7 @@ ONE_ENCODER = 1e-9
 
 
 def _one_encoder(q: np.ndarray, theta: np.ndarray | None, gear_ratio: float) -> bool:
-    """Whether ``theta`` is ``q / gear_ratio`` to rounding (module doc of ``Measured.link_encoder``)."""
+    """Whether ``theta`` is ``q / gear_ratio`` to rounding (``Measured.link_encoder``)."""
     if theta is None:
         return False
     scale = max(float(np.max(np.abs(theta))), float(np.max(np.abs(q))) / gear_ratio)
@@ -389,8 +394,7 @@ class Predictor:
         idx = self.samples
         m = self.m
         pick = lambda x: None if x is None else x[idx]  # noqa: E731
-        return {"q": m.q[idx], "delta": pick(m.delta) if m.link_encoder else None, "theta": pick(m.theta),
-                "tau": pick(m.tau)}
+        return {"q": m.q[idx], "delta": pick(m.measured_delta), "theta": pick(m.theta), "tau": pick(m.tau)}
 
     @property
     def signals(self) -> tuple[str, ...]:
