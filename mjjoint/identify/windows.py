@@ -67,6 +67,7 @@ ROLLOUT_BUFFER = 64 * 2 ** 20
 # model without 2SEP (cost 0.00253 vs 0.00267); along the play-filtered angle it reaches
 # 0.00034 (half-widths of 1-5 std: 0.00034-0.00039). 3 std: a retrace must exceed 6 std, well
 # beyond one quantisation toggle (sqrt(12) = 3.5 std) even when the estimate is 10-20 % low.
+# Bouc-Wen's history runs along the deflection filtered the same way (``Measured.delta_path``).
 REVERSAL_BAND = 3.0
 # Window starts are kept off input jumps. The start velocity is a centred Savitzky-Golay
 # derivative, and a step of u puts a kink in q inside its stencil: the biased velocity then
@@ -162,11 +163,15 @@ class Measured:
 
     @cached_property
     def delta_path(self) -> np.ndarray | None:
-        """The deflection through the Savitzky-Golay filter the velocities come from: a
-        quantised encoder's steps are tiny reversals that would ratchet a hysteresis state."""
+        """The deflection with retraces within its noise band removed (REVERSAL_BAND): the path
+        Bouc-Wen's history runs along. A quantised encoder's toggles are tiny reversals, each of
+        which moves a hysteresis state; a smoothing filter passes them on as slow wiggles, the
+        play does not (docs/diagnosis.md, "The cost")."""
         d = self.delta
-        win = _sg_window(1.0 / self.rate)
-        return None if d is None else self.per_segment(lambda x: savgol_filter(x, win, VELOCITY_ORDER), d)
+        if d is None:
+            return None
+        band = REVERSAL_BAND * noise_std(d, self.rate, self.per_segment)
+        return self.per_segment(lambda x: _play(x, band), d)
 
     @cached_property
     def q_noise(self) -> float:
