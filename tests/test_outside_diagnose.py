@@ -25,9 +25,8 @@ def test_a_hysteretic_gear_of_the_independent_plant_is_named(tmp_path):
 
 # The benchmark itself, with the issue's criteria (slow: ~3 min a case on 2 cores).
 KNOWN_FAILURES: dict[str, str] = {
-    "small_motor": "explained at 1.5x the tool's floor: with the gear's loop shape right (gamma = 0) the twin's "
-                   "windowing floor is 0.029 in tau, 2.9x the true sensors' own, set by the 16-bit link encoder's "
-                   "steps in the window-start velocities; the scorer cannot check the twin independently",
+    "boucwen_soft": "stribeck_friction named beside the gear: it stands in for the plant's LuGre bristle transient "
+                    "(fs = fc) with its parameters inside their ranges, which no stand-in rule catches yet",
 }
 
 
