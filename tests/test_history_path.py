@@ -59,7 +59,6 @@ def test_chatter_at_rest_is_no_reversal_and_real_reversals_are_kept():
     assert np.max(np.abs(path - q)) <= 3.0 * m.q_noise + 1e-12  # within the band (REVERSAL_BAND)
 
 
-
 def test_the_deflection_path_keeps_bouc_wens_state():
     """Bouc-Wen's x run along the deflection of a closed-loop recording (the concealed
     hysteresis case: 20-bit link encoder, 15-bit resolver) stays with x run along the
