@@ -168,10 +168,7 @@ class Measured:
         which moves a hysteresis state; a smoothing filter passes them on as slow wiggles, the
         play does not (docs/diagnosis.md, "The cost")."""
         d = self.delta
-        if d is None:
-            return None
-        band = REVERSAL_BAND * noise_std(d, self.rate, self.per_segment)
-        return self.per_segment(lambda x: _play(x, band), d)
+        return None if d is None else self._retrace_free(d, noise_std(d, self.rate, self.per_segment))
 
     @cached_property
     def q_noise(self) -> float:
@@ -188,7 +185,11 @@ class Measured:
     def q_path(self) -> np.ndarray:
         """The motor angle with retraces within its noise band removed (REVERSAL_BAND): the path
         2SEP's history runs along, so that encoder chatter at rest is no reversal."""
-        return self.per_segment(lambda x: _play(x, REVERSAL_BAND * self.q_noise), self.q)
+        return self._retrace_free(self.q, self.q_noise)
+
+    def _retrace_free(self, x: np.ndarray, noise: float) -> np.ndarray:
+        """``x`` with retraces within REVERSAL_BAND noise std removed, each stacked recording on its own."""
+        return self.per_segment(lambda seg: _play(seg, REVERSAL_BAND * noise), x)
 
     @classmethod
     def from_recording(cls, rec, gear_ratio: float, output: bool = True) -> "Measured":
