@@ -24,17 +24,9 @@ def test_a_hysteretic_gear_of_the_independent_plant_is_named(tmp_path):
 
 
 # The benchmark itself, with the criteria (slow: ~3 min a case on 2 cores).
-KNOWN_FAILURES: dict[str, str] = {
-    "boucwen_soft": "stribeck_friction named beside the gear: it stands in for the plant's LuGre bristle transient "
-                    "(fs = fc) with its parameters inside their ranges, which no stand-in rule catches yet",
-}
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(CASES))
 def test_out_of_regime_case(name, tmp_path):
-    if name in KNOWN_FAILURES:
-        pytest.xfail(KNOWN_FAILURES[name])
     score = run_case(name, 0, tmp_path)
     assert not score.false_additions, score.verdict
     assert not score.explained_above_floor, f"explained at {score.worst} NRMSE {score.nrmse_after:.3g} > " \

@@ -3,6 +3,8 @@ explains the recording better, an effect the later ones made redundant removed, 
 bookkeeping that keeps steps, rivals and the report's models consistent."""
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import pytest
 
 from mjjoint.benchmark.cases import GEAR_RATIO, make_case
@@ -111,6 +113,26 @@ def test_an_effect_that_only_carries_the_others_to_a_better_fit_is_a_stand_in(ba
     # An effect acting where no named one acts is not second-guessed that way.
     assert stand_in(predictor, stalled, added, step, [_step("gravity")], options, floor_cost, lines.append) == (
         None, None)
+
+
+def test_an_effect_that_explains_less_than_a_refused_rival_at_its_site_is_a_stand_in():
+    """The out-of-regime boucwen_soft sequence: 2SEP refused with k and b on their bounds (held-out
+    cost 0.000855 -> 0.000425), then a Stribeck bump passes at 0.000570. Both act on the motor near
+    reversals; the bump explains less there than the refused stand-in did, so it is one too. A
+    rival that predicts better than the refused one, or a refusal at another site, leaves the
+    guard's other tests to decide."""
+    refused = Revision("stand-in", "dynamic_friction", 0.000855, 0.000425, "parameters on their bounds")
+    before = SimpleNamespace(cost_test=0.000855)
+    bump = SimpleNamespace(cost_test=0.000570, on_bound=[])
+    guard = lambda after, refusals: stand_in(None, before, after, _step("stribeck_friction"),  # noqa: E731
+                                             [_step("transmission_hysteresis")], DiagnoseOptions(), 1e-6,
+                                             lambda line: None, refusals)
+    refusal, freer = guard(bump, [refused])
+    assert refusal.kind == "stand-in" and refusal.effect == "stribeck_friction" and freer is None
+    assert "dynamic_friction" in refusal.reason and refusal.cost_after == bump.cost_test
+    assert guard(SimpleNamespace(cost_test=0.000400, on_bound=[]), [refused]) == (None, None)
+    elsewhere = Revision("stand-in", "backlash", 0.000855, 0.000425, "parameters on their bounds")
+    assert guard(bump, [elsewhere]) == (None, None)
 
 
 @pytest.mark.slow

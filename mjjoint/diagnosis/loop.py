@@ -439,7 +439,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             for step in added:
                 with phases("stand-in guard"):
                     refusal, freer = stand_in(predictor, current, refit, step, steps + [s for s in added if s is not step],
-                                              options, floor_cost, say)
+                                              options, floor_cost, say,
+                                              [r for r in revisions if r.kind == "stand-in"])
                 if refusal is not None:
                     refusals.append(refusal)
                     say(f"  {step.effect} is not named: {refusal.reason}")

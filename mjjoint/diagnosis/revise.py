@@ -10,7 +10,9 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   iterations, then the robust loss, kept if it predicts the held-out windows better); an effect
   whose gain does not survive that, or whose own parameters end on their bounds, is a stand-in:
   it is reported (``stand_in_effects``), not named, and not screened again. A generic form, the
-  first effect too, is one where its fit cannot tell its size from none (``resolved``).
+  first effect too, is one where its fit cannot tell its size from none (``resolved``). So is an
+  effect related to one refused before that predicted the held-out windows better than it does:
+  it explains a part of what that stand-in did, and the physics acting there is neither.
 - **Swap**: each named effect is replaced by each of its rivals (``rivals``: the effects acting
   at the same site under a shared residual condition, and the ones the step found
   indistinguishable), the rest refitted; the swap is kept when the swapped model passes the
@@ -125,19 +127,27 @@ def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: d
 
 
 def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: Step, named: list[Step],
-             options: DiagnoseOptions, floor_cost: float, say: Callable[[str], None]
+             options: DiagnoseOptions, floor_cost: float, say: Callable[[str], None], refusals=()
              ) -> tuple[Revision | None, FitResult | None]:
     """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): its
-    own parameters on their bounds, or, when it is ``related`` to an effect already ``named``,
-    its gain gone against the model without it refitted with more freedom, from where ``after``
-    left the other parameters (the added term may only have carried them to a better optimum).
-    Returns (the refusal or None, that refit of the model without it or None)."""
+    own parameters on their bounds, a related effect already refused as a stand-in (one of
+    ``refusals``) predicting the held-out windows better than it does, or, when it is ``related``
+    to an effect already ``named``, its gain gone against the model without it refitted with more
+    freedom, from where ``after`` left the other parameters (the added term may only have carried
+    them to a better optimum). Returns (the refusal or None, that refit of the model without it
+    or None)."""
     size = [p.name for p in EFFECTS[step.effect].params if not p.log and p.initial == 0.0]
     if EFFECTS[step.effect].generic and not resolved(after, size):
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
                         f"passed the acceptance rule with a size its own fit cannot tell from none ({', '.join(size)}: "
                         "every 95 % interval holds zero, jointly too): a generic form standing in for what the "
                         "located residual holds"), None
+    better = [r for r in refusals if related(r.effect, step.effect) and r.cost_after <= after.cost_test]
+    if better:
+        return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
+                        f"explains less of the residual at its site than {better[0].effect}, refused as a stand-in, "
+                        f"did (held-out cost {after.cost_test:.4g} with it, {better[0].cost_after:.4g} with "
+                        f"{better[0].effect}): what acts there is neither"), None
     if not named:
         return None, None
     own = [p.name for p in EFFECTS[step.effect].params]
