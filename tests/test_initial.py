@@ -5,17 +5,20 @@ from __future__ import annotations
 import dataclasses
 import json
 
+import numpy as np
 import pytest
 
 from mjjoint.assets import ArmSpec
 from mjjoint.assets.drive import DriveSpec
 from mjjoint.excitation import Chirp
 from mjjoint.experiments.servo import LARGE, SMALL, geared_recording, servo_recording
-from mjjoint.identify.initial import DECADES, STIFFNESS, estimate
+from mjjoint.identify.effects import EFFECTS
+from mjjoint.identify.initial import DECADES, STIFFNESS, engaged_gear, estimate
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured
 from mjjoint.joint import JointParams
-from mjjoint.recordings import write_recording
+from mjjoint.physics.transmission import Transmission
+from mjjoint.recordings import Recording, write_recording
 
 
 @pytest.mark.parametrize("case", [SMALL, LARGE], ids=["small", "large"])
@@ -128,3 +131,40 @@ def test_the_lab_arms_recordings_keep_the_catalogues_orders():
         assert estimate(Measured.from_recording(rec, 160.0)).scales == {"force": 1.0, "speed": 1.0, "position": 1.0}
     large = estimate(Measured.from_recording(servo_recording(LARGE), 1.0, output=False))
     assert large.scales["force"] >= 1e3
+
+
+def test_the_play_and_the_spring_beyond_it_are_read_from_the_engaged_teeth():
+    """delta = T/k + (b/2) sgn(T) - (D/k) delta' wherever the teeth touch: a deflection swept
+    through a dead zone of width b gives b and k back; a gear without play gives no start."""
+    t = np.arange(0.0, 2.0, 1e-3)
+    delta = 2e-3 * np.sin(2 * np.pi * 3 * t) + 1e-7 * np.random.default_rng(0).standard_normal(t.size)
+    k, d = 5e3, 2.0
+    for b in (0.0, 1e-3):
+        de = np.sign(delta) * np.maximum(np.abs(delta) - b / 2, 0.0)
+        torque = k * de + d * np.gradient(de, t)
+        play = engaged_gear(delta, np.gradient(delta, t), torque)
+        if b == 0.0:
+            assert play == {}
+        else:
+            assert play["backlash.width"] == pytest.approx(b, rel=0.02)
+            assert play["linear_stiffness.k1"] == pytest.approx(k, rel=0.02)
+
+
+def test_a_simulated_play_wider_than_the_catalogues_start_is_offered_to_the_backlash_screen():
+    from mjjoint.physics.friction import StaticFriction
+    from mjjoint.sim import simulate
+    arm = ArmSpec(segments=0, gravity=0.0)
+    for width in (0.0, 6e-4):
+        joint = JointParams(friction=StaticFriction(fc=0.05, fs=0.05, sigma=2e-4), load_friction=None,
+                            transmission=Transmission(gear_ratio=160.0, k1=5e3, k3=0.0, damping=1.0,
+                                                      hysteresis=None, backlash=width))
+        trace = simulate(Chirp(f_start=30.0).sample(1000, 5), arm=arm, joint=joint)
+        measured = Measured.from_recording(Recording(t=trace.t, u=trace.u, q=trace.q, theta=trace.theta,
+                                                     tau=trace.tau), 160.0)
+        structure = Structure.create(("linear_stiffness",), arm, 160.0, start=estimate(measured, arm))
+        starts = [values for values, _ in EFFECTS["backlash"].variants([], structure)]
+        if width == 0.0:
+            assert starts == [{}]
+        else:
+            assert starts[0] == {} and starts[1]["backlash.width"] == pytest.approx(width, rel=0.2)
+            assert starts[1]["linear_stiffness.k1"] == pytest.approx(5e3, rel=0.2)

@@ -163,6 +163,14 @@ def _ripple_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
     return [({}, {"torque_ripple.harmonic": k}) for k in ks]
 
 
+def _play_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
+    """The catalogue's start, and the play the recording's deflection shows with the stiffness
+    beyond it (``initial.engaged_gear``) where there is one: a wide play screened from a narrow
+    start with the base's softened spring stalls there."""
+    play = structure.start.play if structure.start is not None else {}
+    return [({}, {})] + ([(dict(play), {})] if play else [])
+
+
 def _delay_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
     """Started at the lag the residual's cross-correlation locates, inside the bound."""
     lags = [c["params"].get("lag_ms") for c in conds if c["name"] == "lag" and c["significant"]]
@@ -306,7 +314,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            (Param("backlash.width", 1e-4, 1e-7, 1e-2, unit="rad"),),
            lambda m, v: _set_transmission(m, backlash=v["backlash.width"]),
            requires=("linear_stiffness",), site="gear", evidence=("small_delta", "reversal"), plot="loops",
-           term="transmission", read=term_values("transmission", {"backlash.width": "backlash"})),
+           variants=_play_variants, term="transmission",
+           read=term_values("transmission", {"backlash.width": "backlash"})),
     Effect("torque_ripple", "position-periodic motor torque (cogging / eccentricity)",
            (Param("torque_ripple.a", 0.0, -2.0, 2.0, log=False, unit="N m", dim="force"),
             Param("torque_ripple.b", 0.0, -2.0, 2.0, log=False, unit="N m", dim="force")),

@@ -72,6 +72,12 @@ STIFFNESS = EFFECTS["linear_stiffness"].params[0]
 # an offset is taken for the encoders' only where its torque is this many times the recording's.
 OFFSET_TORQUES = 3.0
 SKEW = EFFECTS["sensor_skew"].params[0]
+BACKLASH = EFFECTS["backlash"].params[0]
+# The play's regression (``engaged_gear``) takes the samples where the gear torque exceeds this
+# share of its amplitude (teeth in contact), and offers its width as a start where it is this
+# many times the catalogue's.
+ENGAGED = 0.3
+PLAY_START = 2.0
 
 
 @dataclass(frozen=True)
@@ -83,6 +89,9 @@ class Estimate:
     values: dict[str, float] = field(default_factory=dict)  # catalogue parameter name -> estimate
     resonance: float | None = None  # [Hz] of the gear, where one is visible
     theta_offset: float = 0.0  # [rad] the link encoder's zero against the motor's (``encoder_offset``)
+    # A play's width and the stiffness beyond it (``engaged_gear``), where the deflection shows
+    # a dead zone wider than the catalogue's start: a second start for the backlash's screen.
+    play: dict[str, float] = field(default_factory=dict)
 
     @property
     def position(self) -> float:
@@ -178,7 +187,7 @@ def estimate(measured, arm=None) -> Estimate:
             # No resonance in view: the gear starts as stiff, for the link's inertia, as the
             # nominal's is for its own (the same locked-link frequency).
             values["linear_stiffness.k1"] = STIFFNESS.initial * link_inertia / arm.link_inertia
-    offset = 0.0
+    offset, play = 0.0, {}
     if geared and (m.tau is not None or "inertia.motor" in values):
         if m.tau is not None:
             torque, where = tau, slice(None)
@@ -189,7 +198,8 @@ def estimate(measured, arm=None) -> Estimate:
         values.update(_encoder_lag(delta[where], torque[where], w[where]))
         if "linear_stiffness.k1" in values:
             offset = encoder_offset(delta[where], torque[where], values["linear_stiffness.k1"])
-    return Estimate(force, speed, values, resonance, offset)
+        play = engaged_gear(delta[where], rate(delta)[where], torque[where])
+    return Estimate(force, speed, values, resonance, offset, play)
 
 
 def _encoder_lag(delta: np.ndarray, torque: np.ndarray, link_rate: np.ndarray) -> dict[str, float]:
@@ -202,6 +212,25 @@ def _encoder_lag(delta: np.ndarray, torque: np.ndarray, link_rate: np.ndarray) -
     norms[norms == 0] = 1.0
     lag = float(np.linalg.lstsq(cols / norms, delta, rcond=None)[0][1] / norms[1])
     return {"sensor_skew.lag": lag} if abs(lag) < SKEW.hi else {}
+
+
+def engaged_gear(delta: np.ndarray, delta_rate: np.ndarray, torque: np.ndarray) -> dict[str, float]:
+    """``backlash.width`` and ``linear_stiffness.k1`` from delta = c + T/k + (b/2) sgn(T) - (D/k)
+    delta' on the samples where the gear carries ENGAGED of its torque amplitude: teeth in
+    contact lie half the play off the spring's line, on the side of the torque. Only a positive
+    width above PLAY_START and a positive k are returned (a hysteretic gear's loop gives a small
+    or negative one)."""
+    on = np.abs(torque) > ENGAGED * amplitude(torque)
+    if on.sum() < 10:
+        return {}
+    cols = np.column_stack([np.ones_like(delta), torque, np.sign(torque), delta_rate])[on]
+    norms = np.linalg.norm(cols, axis=0)
+    norms[norms == 0] = 1.0
+    _, compliance, half, _ = np.linalg.lstsq(cols / norms, delta[on], rcond=None)[0] / norms
+    width = 2.0 * float(half)
+    if not (compliance > 0 and width > PLAY_START * BACKLASH.initial):
+        return {}
+    return {BACKLASH.name: width, STIFFNESS.name: 1.0 / float(compliance)}
 
 
 def encoder_offset(delta: np.ndarray, torque: np.ndarray, k: float) -> float:
