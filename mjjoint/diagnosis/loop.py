@@ -395,7 +395,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             if pair is not None and not pair.failed:
                 choice = pair  # its steps' screen says "together with" the other
         best, cand, gain = choice.best, choice.cand, choice.gain
-        unresolved = unresolved_screens({**{k: (c, None) for k, c in rest.items()}, **screened}, ref.cost_test)
+        unresolved = unresolved_screens({**rest, **screened}, ref.cost_test)
         if choice.failed:
             rejected = (f"the best candidate, {best}, lowers the held-out cost by {100 * gain:.1f} % "
                         f"but fails: {', '.join(choice.failed)}")
@@ -427,7 +427,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             parameters={p.name: refit.structure.values[p.name] for e in parts(key) for p in EFFECTS[e].params},
             fit_before=current.nrmse_test, fit_after=refit.nrmse_test,
             gain=1.0 - refit.cost_test / current.cost_test,
-            screened={**rest, **{k: v[0] for k, v in screened.items()}},
+            screened={k: v[0] for k, v in {**rest, **screened}.items()},
             alternatives=alternatives if len(keys) == 1 else [],
             consistency=consistency,
             screen=screen if len(keys) == 1 else f"{TOGETHER} {' + '.join(parts(other))}")
@@ -682,11 +682,14 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
             screened[name] = (res.cost_test, res)
         label = f"{name} {settings}" if settings else name
         say(f"  screened {label} on all windows: held-out cost {ref.cost_test:.4g} -> {res.cost_test:.4g}")
-    rest: dict[str, float] = {}
+    # The screens left on the subset: their held-out cost scaled as a finished screen's would be,
+    # and the best variant's subset fit (its settings: a ripple's harmonic).
+    rest: dict[str, tuple[float, FitResult]] = {}
     for (name, _, _), res in zip(trials, firsts):
         if name not in screened:
             cost = ref.cost_test * res.cost_test / null.cost_test if null.cost_test > 0 else res.cost_test
-            rest[name] = min(rest.get(name, np.inf), cost)
+            if cost < rest.get(name, (np.inf, None))[0]:
+                rest[name] = (cost, res)
     return ref, screened, rest
 
 

@@ -50,13 +50,14 @@ def paired(costs: dict[str, float], finished: set[str], ref: FitResult, min_gain
 
 
 def pair_screen(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],
-                rest: dict[str, float], options: DiagnoseOptions, floor_cost: float,
+                rest: dict[str, tuple[float, FitResult]], options: DiagnoseOptions, floor_cost: float,
                 say: Callable[[str], None]) -> _Choice | None:
     """The pair of the round's screens to name together (module doc), or None. ``rest``: the
-    held-out costs estimated for the screens left on the subset (``loop._screen``); one of them
-    may be the second of a pair, started from the catalogue's values, since the stage that left
-    it there ranks single additions, not partners."""
-    costs = {**rest, **{k: c for k, (c, _) in screened.items()}}
+    held-out costs estimated for the screens left on the subset, with their subset fits
+    (``loop._screen``); one of them may be the second of a pair, started from the catalogue's
+    values with its best variant's settings, since the stage that left it there ranks single
+    additions, not partners."""
+    costs = {k: c for k, (c, _) in {**rest, **screened}.items()}
     pair = paired(costs, set(screened), ref, options.min_gain)
     if pair is None:
         return None
@@ -68,7 +69,8 @@ def pair_screen(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[
         trial = with_candidate(first.at_timestep(min(first.nominal.timestep, second.nominal.timestep)), b, own,
                                {k: v for k, v in second.settings.items() if k.split(".")[0] in parts(b)})
     else:
-        trial = with_candidate(first, b)
+        trial = with_candidate(first, b, None, {k: v for k, v in rest[b][1].structure.settings.items()
+                                                 if k.split(".")[0] in parts(b)})
     freed = list(dict.fromkeys([*screened_params(a, ref.structure), *screened_params(b, ref.structure)]))
     key = a + PAIR + b
     cand = fit(predictor, trial, freed, max_iter=options.screen_iter)
