@@ -20,7 +20,9 @@ linear regressions give:
   locked-link frequency;
 * the encoders: the link encoder's lag and the deflection at zero gear torque, against the gear
   torque T (tau, or what the input leaves past the rotor's inertia): ``_encoder_lag`` (the start
-  of ``sensor_skew``) and ``encoder_offset`` (two zeros the problem aligns before any fit).
+  of ``sensor_skew``) and ``encoder_offset`` (two zeros the problem aligns before any fit);
+* a play: its width and the stiffness beyond it from the engaged teeth (``engaged_gear``), a
+  second start of the backlash's screen (``Estimate.play``), not a value every fit starts from.
 
 ``Estimate.param`` turns a catalogue parameter into the recording's: the catalogue values
 scaled by the decade of each order (``scales``; the lab arm's are all 1, so its fits start as
@@ -217,9 +219,9 @@ def _encoder_lag(delta: np.ndarray, torque: np.ndarray, link_rate: np.ndarray) -
 def engaged_gear(delta: np.ndarray, delta_rate: np.ndarray, torque: np.ndarray) -> dict[str, float]:
     """``backlash.width`` and ``linear_stiffness.k1`` from delta = c + T/k + (b/2) sgn(T) - (D/k)
     delta' on the samples where the gear carries ENGAGED of its torque amplitude: teeth in
-    contact lie half the play off the spring's line, on the side of the torque. Only a positive
-    width above PLAY_START and a positive k are returned (a hysteretic gear's loop gives a small
-    or negative one)."""
+    contact lie half the play off the spring's line, on the side of the torque. Returned only
+    with a positive k and a width above PLAY_START times the catalogue's start (a gear without
+    play, or a hysteretic one, gives a small or negative width)."""
     on = np.abs(torque) > ENGAGED * amplitude(torque)
     if on.sum() < 10:
         return {}
