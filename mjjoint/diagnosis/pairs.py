@@ -63,14 +63,14 @@ def pair_screen(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[
         return None
     a, b = pair
     first = screened[a][1].structure
+    second = {**rest, **screened}[b][1].structure
+    settings = {k: v for k, v in second.settings.items() if k.split(".")[0] in parts(b)}
     if b in screened:
-        second = screened[b][1].structure
         own = {p.name: second.values[p.name] for e in parts(b) for p in EFFECTS[e].params}
         trial = with_candidate(first.at_timestep(min(first.nominal.timestep, second.nominal.timestep)), b, own,
-                               {k: v for k, v in second.settings.items() if k.split(".")[0] in parts(b)})
+                               settings)
     else:
-        trial = with_candidate(first, b, None, {k: v for k, v in rest[b][1].structure.settings.items()
-                                                 if k.split(".")[0] in parts(b)})
+        trial = with_candidate(first, b, None, settings)
     freed = list(dict.fromkeys([*screened_params(a, ref.structure), *screened_params(b, ref.structure)]))
     key = a + PAIR + b
     cand = fit(predictor, trial, freed, max_iter=options.screen_iter)
