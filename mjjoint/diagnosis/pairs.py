@@ -57,13 +57,14 @@ def pair_screen(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[
     (``loop._screen``); one of them may be the second of a pair, started from the catalogue's
     values with its best variant's settings, since the stage that left it there ranks single
     additions, not partners."""
-    costs = {k: c for k, (c, _) in {**rest, **screened}.items()}
+    candidates = {**rest, **screened}  # a name in both: the finished screen
+    costs = {k: c for k, (c, _) in candidates.items()}
     pair = paired(costs, set(screened), ref, options.min_gain)
     if pair is None:
         return None
     a, b = pair
     first = screened[a][1].structure
-    second = {**rest, **screened}[b][1].structure
+    second = candidates[b][1].structure
     settings = {k: v for k, v in second.settings.items() if k.split(".")[0] in parts(b)}
     if b in screened:
         own = {p.name: second.values[p.name] for e in parts(b) for p in EFFECTS[e].params}

@@ -210,9 +210,7 @@ def _encoder_lag(delta: np.ndarray, torque: np.ndarray, link_rate: np.ndarray) -
     squares, k free), where it lies in the skew's range. A start value only: friction on the
     rotor, which the gear does not carry, moves T by a term in theta' too."""
     cols = np.column_stack([np.ones_like(delta), link_rate, torque])
-    norms = np.linalg.norm(cols, axis=0)
-    norms[norms == 0] = 1.0
-    lag = float(np.linalg.lstsq(cols / norms, delta, rcond=None)[0][1] / norms[1])
+    lag = float(_least_squares(cols, delta)[1])
     return {"sensor_skew.lag": lag} if abs(lag) < SKEW.hi else {}
 
 
@@ -226,9 +224,7 @@ def engaged_gear(delta: np.ndarray, delta_rate: np.ndarray, torque: np.ndarray) 
     if on.sum() < 10:
         return {}
     cols = np.column_stack([np.ones_like(delta), torque, np.sign(torque), delta_rate])[on]
-    norms = np.linalg.norm(cols, axis=0)
-    norms[norms == 0] = 1.0
-    _, compliance, half, _ = np.linalg.lstsq(cols / norms, delta[on], rcond=None)[0] / norms
+    _, compliance, half, _ = _least_squares(cols, delta[on])
     width = 2.0 * float(half)
     if not (compliance > 0 and width > PLAY_START * BACKLASH.initial):
         return {}
@@ -259,9 +255,7 @@ def _link_start(arm, tau: np.ndarray, theta: np.ndarray, w: np.ndarray, a: np.nd
     if moving.sum() < 10 or not speed > 0:
         return {}
     cols = np.column_stack([a, np.sin(theta), np.sign(w), w, np.ones_like(w)])[moving]
-    norms = np.linalg.norm(cols, axis=0)
-    norms[norms == 0] = 1.0
-    j_link, moment, fl, dl, _ = (float(x) for x in np.linalg.lstsq(cols / norms, tau[moving], rcond=None)[0] / norms)
+    j_link, moment, fl, dl, _ = (float(x) for x in _least_squares(cols, tau[moving]))
     if not j_link > 0 or abs(math.log10(j_link / arm.link_inertia)) < LINK_DECADE:
         return {}
     tip = _tip_mass(arm, j_link)
@@ -306,6 +300,15 @@ def _rigid_split(j_rigid: float, gear_ratio: float, arm) -> tuple[dict[str, floa
     return out, j_link
 
 
+def _least_squares(cols: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The coefficients of y = cols @ c (least squares), each column scaled to unit norm for the
+    solve: the regressions' parameters (an inertia, a friction level, a stiffness) differ by
+    decades."""
+    norms = np.linalg.norm(cols, axis=0)
+    norms[norms == 0] = 1.0
+    return np.linalg.lstsq(cols / norms, y, rcond=None)[0] / norms
+
+
 def _positive(x: float, fallback: float) -> float:
     return x if x > 0 and math.isfinite(x) else fallback
 
@@ -320,10 +323,7 @@ def _motor_regression(y: np.ndarray, v: np.ndarray, a: np.ndarray, speed: float,
     if moving.sum() < 10:
         return {}
     cols = np.column_stack([a, np.sign(v), v, np.ones_like(v), *([] if extra is None else [extra])])[moving]
-    # Columns scaled to unit norm: J, Fc and d differ by decades.
-    norms = np.linalg.norm(cols, axis=0)
-    norms[norms == 0] = 1.0
-    coef = np.linalg.lstsq(cols / norms, y[moving], rcond=None)[0] / norms
+    coef = _least_squares(cols, y[moving])
     j, fc, d, c = (float(x) for x in coef[:4])
     out = {"input_offset.offset": -c}
     for name, value in (("inertia.motor", j), ("coulomb_friction.fc", fc), ("viscous_friction.sigma", d)):
@@ -344,9 +344,7 @@ def near_reversal(v: np.ndarray, guard: int) -> np.ndarray:
 def _stiffness_regression(delta: np.ndarray, delta_rate: np.ndarray, tau: np.ndarray) -> dict[str, float]:
     """k from tau = k delta + D delta' + c (least squares)."""
     cols = np.column_stack([delta, delta_rate, np.ones_like(delta)])
-    norms = np.linalg.norm(cols, axis=0)
-    norms[norms == 0] = 1.0
-    k = float(np.linalg.lstsq(cols / norms, tau, rcond=None)[0][0] / norms[0])
+    k = float(_least_squares(cols, tau)[0])
     return {"linear_stiffness.k1": k} if k > 0 else {}
 
 
