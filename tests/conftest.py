@@ -46,3 +46,11 @@ def mujoco_log_file(tmp_path_factory) -> Path:
     config = mujoco.MjLogConfig.get()
     config.logfile = previous
     config.set()
+
+
+@pytest.fixture(autouse=True)
+def _mujoco_warnings_to_the_log() -> None:
+    """Importing dm_control routes MuJoCo's warnings to its own callback for the whole process
+    (collecting a test file that imports it is enough): each test starts with them going to the
+    log, whichever files ran before it in its process."""
+    mujoco.set_mju_user_warning(None)

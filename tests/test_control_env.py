@@ -20,13 +20,6 @@ from mjjoint.rehearse import lsb
 from mjjoint.control import TASKS, JointPhysics, JointSensors, build_rigid_arm, load
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _mujoco_warnings_back_to_the_log():
-    """Importing dm_control routes MuJoCo's warnings to its own callback for the whole process;
-    the other tests' warnings go back to MuJoCo's log (tests/conftest.py) after this module."""
-    yield
-    mujoco.set_mju_user_warning(None)
-
 EXACT = JointSensors(resolver_bits=None, encoder_bits=None, torque_noise=0.0)
 
 
