@@ -30,14 +30,15 @@ def test_concealed_effect_is_named_and_nothing_else(effect, tmp_path):
         assert score.parameter_error is not None and score.parameter_error < 0.5, score
 
 
-# Seed 2's 2SEP truth predicts the held-out motor angle to NRMSE 0.009 where the base misses it by
-# 0.40, but the lag's screen, started from the catalogue's values, does not reach it
-# (docs/benchmark.md, "Concealed-effect benchmark").
-UNDETECTABLE = pytest.mark.xfail(strict=True, reason="the 2SEP screen does not reach the truth from the catalogue's start")
+# Seed 2's 2SEP lag is named, but its gain B lands at half the truth's: one breakaway after a
+# 0.8 s dwell holds most of the truth's own training cost, and the dwell's windup is not
+# recoverable from the recording at the precision that breakaway needs (docs/benchmark.md,
+# "Concealed-effect benchmark").
+LAG_GAIN_OFF = pytest.mark.xfail(strict=True, reason="2SEP is named but its lag gain B is 51 % off the truth")
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("effect", [pytest.param(e, marks=UNDETECTABLE) if e == "dynamic_friction" else e
+@pytest.mark.parametrize("effect", [pytest.param(e, marks=LAG_GAIN_OFF) if e == "dynamic_friction" else e
                                     for e in CONCEALED])
 def test_full_case_set(effect, tmp_path):
     score = run_case(effect, seed=2, folder=tmp_path, duration=20.0)
