@@ -82,12 +82,12 @@ def test_a_rival_named_first_is_swapped_for_the_effect_that_explains_the_recordi
     assert abs(width / truth - 1.0) < 0.5
 
 
-@pytest.mark.slow
 def test_an_effect_that_only_carries_the_others_to_a_better_fit_is_a_stand_in(backlash_recording):
     """The play named, its fit stalled; the hysteretic gear added passes the acceptance rule
     against the stalled fit, and the guard refuses it: fitted freely its parameters end on their
     bounds; held off them (nearly elastic), the model with the play alone, refitted from the values the addition
-    reached, does at least as well."""
+    reached, does at least as well. Either way the model with the play alone, refitted from there,
+    predicts better than the stalled fit: the loop keeps it."""
     case, predictor = backlash_recording
     options = DiagnoseOptions(fit_iter=8)
     named = Structure.create((*case.base_effects, "backlash"), case.truth.nominal, GEAR_RATIO)
@@ -105,11 +105,11 @@ def test_an_effect_that_only_carries_the_others_to_a_better_fit_is_a_stand_in(ba
                                   lines.append)
         assert refusal is not None and refusal.kind == "stand-in", lines
         if not held:
-            assert "on their bounds" in refusal.reason and freer is None
+            assert "on their bounds" in refusal.reason, refusal
         else:
             assert "re-explains what backlash" in refusal.reason, refusal
-            assert freer.cost_test <= added.cost_test < stalled.cost_test
-            assert "transmission_hysteresis" not in freer.structure.effects
+            assert freer.cost_test <= added.cost_test
+        assert freer.cost_test < stalled.cost_test and "transmission_hysteresis" not in freer.structure.effects
     # An effect acting where no named one acts is not second-guessed that way.
     assert stand_in(predictor, stalled, added, step, [_step("gravity")], options, floor_cost, lines.append) == (
         None, None)

@@ -9,7 +9,10 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   against the model without it refitted with more freedom (every parameter free, ``fit_iter``
   iterations, then the robust loss, kept if it predicts the held-out windows better); an effect
   whose gain does not survive that, or whose own parameters end on their bounds, is a stand-in:
-  it is reported (``stand_in_effects``), not named, and not screened again. A generic form, the
+  it is reported (``stand_in_effects``), not named, and not screened again; the model without it,
+  refitted from where its fit left the other parameters, replaces the current one where it
+  predicts the held-out windows better (a term fitted to its bound is often fitted to none, its
+  gain the model's own from another start). A generic form, the
   first effect too, is one where its fit cannot tell its size from none (``resolved``). So is an
   effect related to one refused before that predicted the held-out windows better than it does:
   it explains a part of what that stand-in did, and the physics acting there is neither.
@@ -135,7 +138,8 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     to an effect already ``named``, its gain gone against the model without it refitted with more
     freedom, from where ``after`` left the other parameters (the added term may only have carried
     them to a better optimum). Returns (the refusal or None, that refit of the model without it
-    or None)."""
+    or None; a refusal for bounds refits it too, which the loop keeps where it predicts the
+    held-out windows better than the model it extends)."""
     size = [p.name for p in EFFECTS[step.effect].params if not p.log and p.initial == 0.0]
     if EFFECTS[step.effect].generic and not resolved(after, size):
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
@@ -153,9 +157,16 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     own = [p.name for p in EFFECTS[step.effect].params]
     bound = [n for n in after.on_bound if n in own]
     if bound:
+        # A term fitted to a bound is often fitted to none at all (a Stribeck ratio of 1, a delay
+        # of 0): its gain is then the model's own, reached from another start, which the model
+        # without it refitted from there keeps.
+        free = _robust_kept(predictor, fit(predictor, without(after.structure, step.effects),
+                                           max_iter=options.fit_iter), options)
+        say(f"  the model without {step.effect} refitted from its values: held-out cost {free.cost_test:.4g} "
+            f"(before it {before.cost_test:.4g}, with it {after.cost_test:.4g})")
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
                         f"passed the acceptance rule with its parameters on their bounds ({', '.join(bound)}): "
-                        "a stand-in, not an estimate"), None
+                        "a stand-in, not an estimate"), free
     earlier = [s.effect for s in named if related(s.effect, step.effect)]
     if not earlier:
         return None, None
