@@ -108,7 +108,7 @@ def test_an_effect_that_only_carries_the_others_to_a_better_fit_is_a_stand_in(ba
             assert "on their bounds" in refusal.reason, refusal
         else:
             assert "re-explains what backlash" in refusal.reason, refusal
-            assert freer.cost_test <= added.cost_test
+            assert freer.cost_test <= added.cost_test < stalled.cost_test
         assert freer.cost_test < stalled.cost_test and "transmission_hysteresis" not in freer.structure.effects
     # An effect acting where no named one acts is not second-guessed that way.
     assert stand_in(predictor, stalled, added, step, [_step("gravity")], options, floor_cost, lines.append) == (

@@ -160,8 +160,7 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
         # A term fitted to a bound is often fitted to none at all (a Stribeck ratio of 1, a delay
         # of 0): its gain is then the model's own, reached from another start, which the model
         # without it refitted from there keeps.
-        free = _robust_kept(predictor, fit(predictor, without(after.structure, step.effects),
-                                           max_iter=options.fit_iter), options)
+        free = _robust_kept(predictor, _refit_without(predictor, after, step, options), options)
         say(f"  the model without {step.effect} refitted from its values: held-out cost {free.cost_test:.4g} "
             f"(before it {before.cost_test:.4g}, with it {after.cost_test:.4g})")
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
@@ -172,7 +171,7 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
         return None, None
     say(f"  {step.effect} acts where {', '.join(earlier)} does: its gain tested against the model without it "
         "refitted from its values, every parameter free")
-    free = fit(predictor, without(after.structure, step.effects), max_iter=options.fit_iter)
+    free = _refit_without(predictor, after, step, options)
     ref = _robust_kept(predictor, min(before, free, key=lambda r: r.cost_test), options)
     _, consistency, failed = acceptance(predictor, ref, after, step.effect, options, floor_cost, options.max_p)
     say(f"  held-out cost {ref.cost_test:.4g} without {step.effect} refitted, {after.cost_test:.4g} with it "
@@ -182,6 +181,12 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     return Revision("stand-in", step.effect, ref.cost_test, after.cost_test,
                     f"re-explains what {', '.join(earlier)} and the rest explain: against the model without it "
                     f"refitted from its values it fails {', '.join(failed)}"), ref
+
+
+def _refit_without(predictor: Predictor, after: FitResult, step: Step, options: DiagnoseOptions) -> FitResult:
+    """The model ``after`` without ``step``'s effects, refitted from the values ``after`` reached,
+    every parameter free (``fit_iter`` iterations)."""
+    return fit(predictor, without(after.structure, step.effects), max_iter=options.fit_iter)
 
 
 def resolved(result: FitResult, names: list[str]) -> bool:
