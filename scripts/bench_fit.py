@@ -14,8 +14,9 @@
     one whose truth has backlash the fitted model lacks. Both results are also scored on
     independent recordings of the same truth (other excitation and noise seeds, three times
     as long): the 8 held-out windows of the fitted recording rank near-equal fits by chance;
-(d) the full diagnosis of one concealed-effect case (mjjoint.benchmark): rollouts, wall time and
-    the process's CPU time (all threads; what a loaded machine moves least);
+(d) the full diagnosis of one concealed-effect case (mjjoint.benchmark): rollouts, wall time, the
+    process's CPU time (all threads; what a loaded machine moves least) and the wall time spent
+    inside mujoco.rollout;
 (e) --memory: peak RSS of a fit plus one diagnosis round on a 1- and a 10-minute recording
     at 1 kHz, each in its own process (ru_maxrss is a per-process peak).
 
@@ -407,14 +408,20 @@ def diagnosis(case: str, duration: float, sizes: Sizes) -> dict:
         def progress(msg: str) -> None:
             lines.append(msg)
             say(f"    {msg}")
-        score = run_case(case, CASE_SEED, Path(tmp), duration, sizes.diag_options, progress=progress)
+        stepping: list[float] = []
+        with rollout_clock(stepping):
+            score = run_case(case, CASE_SEED, Path(tmp), duration, sizes.diag_options, progress=progress)
         cpu = time.process_time() - cpu
     # The diagnosis's last line: its rollouts and wall time per phase (diagnosis.clock.Phases).
     spent = next((m for m in reversed(lines) if m.startswith("spent: ")), "")
     say(f"  {score.rollouts:.0f} full-length rollouts, {score.seconds:.1f} s wall ({cpu:.1f} s CPU); named "
         f"{score.named}, false additions {score.false_additions or 'none'}, {score.signal} NRMSE "
         f"{score.nrmse_before:.3f} -> {score.nrmse_after:.3f}")
+    # What MuJoCo's stepping takes of it (wall time inside mujoco.rollout); the rest is the
+    # Python around it: models built and compiled, window starts, signals, the fits' algebra.
+    say(f"  {sum(stepping):.1f} s of it inside mujoco.rollout ({len(stepping)} calls)")
     return {"case": case, "seconds_recorded": duration, "rollouts": score.rollouts, "wall_s": score.seconds, "cpu_s": cpu,
+            "rollout_s": sum(stepping),
             "named": score.named, "false_additions": score.false_additions, "nrmse_before": score.nrmse_before,
             "nrmse_after": score.nrmse_after, "phases": spent.removeprefix("spent: ")}
 

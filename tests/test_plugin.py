@@ -242,3 +242,15 @@ def test_locked_output_keeps_link_still():
     _drive(sim_model, data, 500, seed=9)
     assert data.qpos[sim_model.joint("link").qposadr[0]] == 0.0
     assert abs(data.qpos[sim_model.joint("motor").qposadr[0]]) > 0.0
+
+
+def test_a_model_objects_config_span_is_the_byte_wise_reads():
+    from mjjoint.assets.serial import build_serial_arm
+    from mjjoint.assets.shipped_arms import arm3
+    from mjjoint.coupling.plugin import _attr_span, _model_attr_span
+    models = [build_arm(scene=False).compile(), build_serial_arm(arm3()).compile(),
+              build_serial_arm(arm3(), one_instance=True).compile()]
+    spans = [(_model_attr_span(m, i), _attr_span(m._address, i)) for m in models for i in range(m.nplugin)]
+    assert len(spans) == 5
+    for fast, bytewise in spans:
+        assert fast == bytewise

@@ -121,6 +121,15 @@ def _attr_span(m_addr: int, instance: int) -> tuple[int, int]:
     return start, length
 
 
+def _model_attr_span(model: mujoco.MjModel, instance: int) -> tuple[int, int]:
+    """``_attr_span`` of a model object, read through its array view (no byte-wise ctypes reads:
+    this runs for every model of every prediction batch)."""
+    attr = model.plugin_attr
+    start = int(model.plugin_attradr[instance])
+    ends = np.flatnonzero(attr[start:] == 0)
+    return attr.ctypes.data + start, int(ends[len(config_keys()) - 1]) + 1
+
+
 def register_model(model_or_address, instance: int | None = None) -> list[int]:
     """Parse and store the parameters of a model's plugin instances; returns their rows.
 
@@ -133,12 +142,14 @@ def register_model(model_or_address, instance: int | None = None) -> list[int]:
     if isinstance(model_or_address, int):
         m_addr = model_or_address
         instances = [instance] if instance is not None else []
+        span = lambda i: _attr_span(m_addr, i)  # noqa: E731
     else:
         m_addr = model_or_address._address
         instances = [instance] if instance is not None else range(model_or_address.nplugin)
+        span = lambda i: _model_attr_span(model_or_address, i)  # noqa: E731
     rows = []
     for i in instances:
-        attr, length = _attr_span(m_addr, i)
+        attr, length = span(i)
         with _lock:
             r = find_row(registry.KEYS_ADDRESS, registry.CONFIGS_ADDRESS, m_addr, attr, i)
             if r < 0:

@@ -28,6 +28,7 @@ from ..assets.joint_view import _subtree
 from ..assets.serial import add_elastic_joint, add_home_key, new_spec
 from ..assets.serial_file import SerialArmFile
 from ..coupling.plugin import register_model
+from ..identify.stages import for_prediction
 from ..identify.structure import Structure
 from ..identify.windows import Measured, Predictor, WindowDesign
 from ..sim import FULL, joint_indices, state_velocity
@@ -94,7 +95,7 @@ def _heavy_arm(arm: SerialArmFile, j: int, weight: float = 0.0) -> mujoco.MjMode
                     act.gainprm[0] = HEAVY
                     act.biasprm[:3] = [0.0, -HEAVY * w * w, -2 * HEAVY * w]
                     act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-        model = spec.compile()
+        model = for_prediction(spec.compile())
         if weight:
             _add_weight(model, model.body(f"tip{j}").id, weight)
         register_model(model)
