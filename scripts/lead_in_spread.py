@@ -7,9 +7,12 @@ that lead-in starts is a choice; here each resting window is predicted by the tr
 started at the last sample faster than f x ``Measured.moving_speed``, f in ``--factors``, and a
 window whose cost spreads more than ``--spread`` times between them is "undetermined". Printed per
 seed: the truth's training cost, with and without the undetermined windows, against the windows
-that start moving (no lead-in); with ``--fit``, the least-squares fit of every parameter from the
-truth on all training windows and without the undetermined ones (the lag gain B, the pre-sliding
-stiffness k, the costs; a few minutes per seed on 2 cores).
+that start moving (no lead-in); the same windows told without the truth, by how far a model's
+own predictions from those lead-ins spread (their mean squared normalised difference, in noise
+floors), for the truth and for the screen's start (the base with 2SEP at the catalogue's
+values); with ``--fit``, the least-squares fit of every parameter from the truth on all training
+windows and without the undetermined ones (the lag gain B, the pre-sliding stiffness k, the
+costs; a few minutes per seed on 2 cores).
 
     python scripts/lead_in_spread.py                     # seeds 0-4, about a minute
     python scripts/lead_in_spread.py --seeds 1 2 --fit
@@ -23,9 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-from mjjoint.benchmark.cases import GEAR_RATIO, make_case
+from mjjoint.benchmark.cases import GEAR_RATIO, NOMINAL, make_case
 from mjjoint.benchmark.score import write_case_recording
 from mjjoint.identify.fit import fit, window_costs
+from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign, lead_samples
 from mjjoint.recordings import read_recording
 
@@ -47,6 +51,19 @@ def predictor(measured: Measured, seed: int, factor: float, drop: np.ndarray = n
         def train(self) -> np.ndarray:
             return np.setdiff1d(np.flatnonzero(~self.holdout), drop)
     return Shifted(measured, WindowDesign(seed=seed))
+
+
+def prediction_spread(shifted: list[Predictor], structure: Structure, windows: np.ndarray) -> np.ndarray:
+    """Per window, the largest mean squared normalised difference between the predictions of
+    ``structure`` from the lead-ins of ``shifted``, in noise floors."""
+    first = shifted[0]
+    preds = [p.predict([structure], windows)[0] for p in shifted]
+    spread = np.zeros(len(windows))
+    for a in range(len(preds)):
+        for b in range(a + 1, len(preds)):
+            d = first.residuals(preds[a], windows) - first.residuals(preds[b], windows)
+            spread = np.maximum(spread, first.window_mean_squares(d, len(windows)))
+    return spread / first.noise_floor
 
 
 def main() -> None:
@@ -75,6 +92,13 @@ def main() -> None:
               f"undetermined ({np.flatnonzero(undetermined & train).tolist()}) holding {c[train & undetermined].sum() / c[train].sum():.0%} "
               f"of the truth's training cost {c[train].mean():.3g}; without them {c[train & ~undetermined].mean():.3g}; "
               f"windows that start moving {c[train & ~resting].mean():.3g}", flush=True)
+        rest = np.flatnonzero(resting)
+        start = Structure.create(case.base_effects, NOMINAL, GEAR_RATIO).with_effect("dynamic_friction")
+        for label, structure in (("the truth", case.truth), ("the screen's start", start)):
+            spread = prediction_spread(shifted, structure, rest)
+            order = np.argsort(-spread)[:6]
+            print(f"  predictions of {label} from those lead-ins spread by (noise floors): "
+                  + ", ".join(f"window {rest[i]} {spread[i]:.3g}" for i in order), flush=True)
         if args.fit:
             for label, drop in (("all training windows", np.zeros(0, int)),
                                 ("without the undetermined", np.flatnonzero(undetermined))):
