@@ -14,7 +14,7 @@ values); with ``--fit``, the least-squares fit of every parameter from the truth
 windows and without the undetermined ones (the lag gain B, the pre-sliding stiffness k, the
 costs; a few minutes per seed on 2 cores).
 
-    python scripts/lead_in_spread.py                     # seeds 0-4, about a minute
+    python scripts/lead_in_spread.py                     # seeds 0-4, about 30 s on 2 cores
     python scripts/lead_in_spread.py --seeds 1 2 --fit
 """
 from __future__ import annotations

@@ -18,6 +18,12 @@ from mjjoint.rehearse import LabProgram, record
 D = mujoco.mjtDisableBit
 
 
+def _forget_models() -> None:
+    """Empty the compiled-model memo, and the stability memo keyed by those models' ids."""
+    windows._MODEL_CACHE.clear()
+    windows._STABLE.clear()
+
+
 def test_predictions_are_bit_identical_with_the_stages_off(monkeypatch):
     truth = make_case("none", 0).truth
     cols = record(*truth.model_params(), LabProgram(duration=3.0, seed=0))
@@ -26,15 +32,15 @@ def test_predictions_are_bit_identical_with_the_stages_off(monkeypatch):
     # A flexible rod with a play and Bouc-Wen, and the rigid rod the recording was made with.
     structures = [truth.with_effect("link_flexibility", {"link_flexibility.ei": 500.0}).with_effect("backlash"),
                   truth]
-    windows._MODEL_CACHE.clear()
+    _forget_models()
     off = pred.predict(structures)
     flags = {windows._compile(*s.model_params()).opt.disableflags for s in structures}
     assert flags == {int(D.mjDSBL_SENSOR) | int(D.mjDSBL_CONSTRAINT) | int(D.mjDSBL_CONTACT)}
     monkeypatch.setattr(windows, "for_prediction", lambda model: model)
-    windows._MODEL_CACHE.clear()
+    _forget_models()
     on = pred.predict(structures)
     assert {windows._compile(*s.model_params()).opt.disableflags for s in structures} == {0}
-    windows._MODEL_CACHE.clear()
+    _forget_models()
     for a, b in zip(off, on):
         assert a.keys() == b.keys()
         for k in a:

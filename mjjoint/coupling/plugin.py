@@ -142,14 +142,13 @@ def register_model(model_or_address, instance: int | None = None) -> list[int]:
     if isinstance(model_or_address, int):
         m_addr = model_or_address
         instances = [instance] if instance is not None else []
-        span = lambda i: _attr_span(m_addr, i)  # noqa: E731
     else:
         m_addr = model_or_address._address
         instances = [instance] if instance is not None else range(model_or_address.nplugin)
-        span = lambda i: _model_attr_span(model_or_address, i)  # noqa: E731
     rows = []
     for i in instances:
-        attr, length = span(i)
+        attr, length = (_attr_span(m_addr, i) if isinstance(model_or_address, int)
+                        else _model_attr_span(model_or_address, i))
         with _lock:
             r = find_row(registry.KEYS_ADDRESS, registry.CONFIGS_ADDRESS, m_addr, attr, i)
             if r < 0:

@@ -566,7 +566,11 @@ class Predictor:
 
         ``skew`` [s]: the link encoder reads that late, so the link's state at a start is the one
         it reports ``skew`` later."""
-        x0 = np.tile(_reset_state(model), (len(i0), 1))
+        d = mujoco.MjData(model)
+        mujoco.mj_resetData(model, d)
+        template = np.empty(mujoco.mj_stateSize(model, FULL))
+        mujoco.mj_getState(model, d, template, FULL)
+        x0 = np.tile(template, (len(i0), 1))
         m = self.m
         x0[:, 0] = 0.0
         x0[:, 1 + ji.motor_qpos] = m.q[i0]
@@ -886,24 +890,6 @@ def _stable(model) -> bool:
 
 
 _STABLE: dict[int, bool] = {}
-
-
-def _reset_state(model) -> np.ndarray:
-    """The model's full state after ``mj_resetData`` (memoised: each new MjData runs the
-    plugin's init, which costs more than a short window batch's rollout)."""
-    key = id(model)
-    if key not in _RESET:
-        if len(_RESET) > 256:
-            _RESET.clear()
-        d = mujoco.MjData(model)
-        mujoco.mj_resetData(model, d)
-        x = np.empty(mujoco.mj_stateSize(model, FULL))
-        mujoco.mj_getState(model, d, x, FULL)
-        _RESET[key] = (model, x)  # the model held: its id is not reused while the entry lives
-    return _RESET[key][1]
-
-
-_RESET: dict[int, tuple] = {}
 
 
 _MODEL_CACHE: dict = {}
