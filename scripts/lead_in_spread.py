@@ -10,9 +10,9 @@ seed: the truth's training cost, with and without the undetermined windows, agai
 that start moving (no lead-in); the same windows told without the truth, by how far a model's
 own predictions from those lead-ins spread (their mean squared normalised difference, in noise
 floors), for the truth and for the screen's start (the base with 2SEP at the catalogue's
-values); with ``--fit``, the least-squares fit of every parameter from the truth on all training
-windows and without the undetermined ones (the lag gain B, the pre-sliding stiffness k, the
-costs; a few minutes per seed on 2 cores).
+values); with ``--fit``, the least-squares fit of every parameter from the truth, which leaves
+out the windows the model being fitted leaves undetermined (``Predictor.undetermined``; the lag
+gain B, the pre-sliding stiffness k, the costs; a few minutes per seed on 2 cores).
 
     python scripts/lead_in_spread.py                     # seeds 0-4, about 30 s on 2 cores
     python scripts/lead_in_spread.py --seeds 1 2 --fit
@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import tempfile
-from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -30,40 +29,15 @@ from mjjoint.benchmark.cases import GEAR_RATIO, NOMINAL, make_case
 from mjjoint.benchmark.score import write_case_recording
 from mjjoint.identify.fit import fit, window_costs
 from mjjoint.identify.structure import Structure
-from mjjoint.identify.windows import Measured, Predictor, WindowDesign, lead_samples
+from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.recordings import read_recording
 
 
-def predictor(measured: Measured, seed: int, factor: float, drop: np.ndarray = np.zeros(0, int)) -> Predictor:
+def predictor(measured: Measured, seed: int, factor: float = 1.0) -> Predictor:
     """The benchmark's predictor with resting windows' lead-ins from the last sample faster than
     ``factor`` x moving_speed (the same windows rest: those slower than moving_speed at their
-    start), and the training windows ``drop`` left out."""
-    class Shifted(Predictor):
-        @cached_property
-        def lead_samples(self) -> np.ndarray:
-            m = self.m
-            cap = int(round(self.design.lead * m.rate))
-            resting = lead_samples(m.qd, m.moving_speed, self.starts, m.joins, cap)
-            far = lead_samples(m.qd, factor * m.moving_speed, self.starts, m.joins, cap)
-            return np.where(resting > 0, np.maximum(resting, far), 0)
-
-        @property
-        def train(self) -> np.ndarray:
-            return np.setdiff1d(np.flatnonzero(~self.holdout), drop)
-    return Shifted(measured, WindowDesign(seed=seed))
-
-
-def prediction_spread(shifted: list[Predictor], structure: Structure, windows: np.ndarray) -> np.ndarray:
-    """Per window, the largest mean squared normalised difference between the predictions of
-    ``structure`` from the lead-ins of ``shifted``, in noise floors."""
-    first = shifted[0]
-    preds = [p.predict([structure], windows)[0] for p in shifted]
-    spread = np.zeros(len(windows))
-    for a in range(len(preds)):
-        for b in range(a + 1, len(preds)):
-            d = first.residuals(preds[a], windows) - first.residuals(preds[b], windows)
-            spread = np.maximum(spread, first.window_mean_squares(d, len(windows)))
-    return spread / first.noise_floor
+    start)."""
+    return Predictor(measured, WindowDesign(seed=seed)).with_lead(factor)
 
 
 def main() -> None:
@@ -72,7 +46,7 @@ def main() -> None:
     ap.add_argument("--factors", type=float, nargs="+", default=[1.0, 3.0, 10.0])
     ap.add_argument("--spread", type=float, default=2.0)
     ap.add_argument("--duration", type=float, default=20.0)
-    ap.add_argument("--fit", action="store_true", help="also fit the truth with and without the undetermined windows")
+    ap.add_argument("--fit", action="store_true", help="also fit the truth (the fit leaves out the windows it leaves undetermined)")
     args = ap.parse_args()
     for seed in args.seeds:
         case = make_case("dynamic_friction", seed)
@@ -95,18 +69,17 @@ def main() -> None:
         rest = np.flatnonzero(resting)
         start = Structure.create(case.base_effects, NOMINAL, GEAR_RATIO).with_effect("dynamic_friction")
         for label, structure in (("the truth", case.truth), ("the screen's start", start)):
-            spread = prediction_spread(shifted, structure, rest)
+            spread = first.lead_in_spread(structure, rest, args.factors)
             order = np.argsort(-spread)[:6]
             print(f"  predictions of {label} from those lead-ins spread by (noise floors): "
                   + ", ".join(f"window {rest[i]} {spread[i]:.3g}" for i in order), flush=True)
         if args.fit:
-            for label, drop in (("all training windows", np.zeros(0, int)),
-                                ("without the undetermined", np.flatnonzero(undetermined))):
-                r = fit(predictor(measured, seed, args.factors[0], drop), case.truth, max_iter=30)
-                v = r.structure.values
-                print(f"  fitted from the truth, {label}: B {v['dynamic_friction.b']:.1f}, k {v['dynamic_friction.k']:.0f}, "
-                      f"training cost {r.cost_train:.3g}, held-out {r.cost_test:.3g}", flush=True)
-
+            r = fit(first, case.truth, max_iter=30)
+            v = r.structure.values
+            left = first.undetermined(r.structure, first.train)
+            print(f"  fitted from the truth (leaving out the windows the fitted model leaves undetermined, "
+                  f"{left.tolist()} at its end): B {v['dynamic_friction.b']:.1f}, k {v['dynamic_friction.k']:.0f}, "
+                  f"training cost {r.cost_train:.3g}, held-out {r.cost_test:.3g}", flush=True)
 
 if __name__ == "__main__":
     main()

@@ -79,18 +79,37 @@ def test_too_few_condition_windows_leave_the_all_window_test_alone():
 
 
 # ---- the second, all-free screen: when it is called, and at which level ----------------------
-def _fit(cost_train: float, cost_test: float, nparams: int = 5) -> SimpleNamespace:
-    return SimpleNamespace(cost_train=cost_train, cost_test=cost_test, structure=SimpleNamespace(params=[0] * nparams))
+# 50 training windows of 100 residuals each (2 signals x 50 samples)
+_PREDICTOR = SimpleNamespace(train=np.arange(50), cols=np.arange(50), signals=("q", "tau"))
+
+
+def _fit(cost_train: float, cost_test: float, nparams: int = 5, left_out: tuple[int, ...] = ()) -> SimpleNamespace:
+    return SimpleNamespace(cost_train=cost_train, cost_test=cost_test, structure=SimpleNamespace(params=[0] * nparams),
+                           train_costs=np.full(len(_PREDICTOR.train), cost_train), left_out=left_out)
 
 
 def _choice(monkeypatch, p: float, cand_test: float, cand_train: float = 0.5, max_p: float | None = None):
     from mjjoint.diagnosis import loop
     monkeypatch.setattr(loop, "_consistency", lambda *a: {"p": p, "windows": "20 held-out windows"})
-    monkeypatch.setattr(loop, "_n_residuals", lambda predictor: 10_000)
     ref = _fit(1.0, 0.01)
     floor_cost = 5e-3  # material from 5e-4 on, a tenth of it (DiagnoseOptions.floor_share)
-    return loop._decide(None, ref, {"input_delay": (cand_test, _fit(cand_train, cand_test))}, loop.DiagnoseOptions(),
-                        floor_cost, max_p)
+    return loop._decide(_PREDICTOR, ref, {"input_delay": (cand_test, _fit(cand_train, cand_test))},
+                        loop.DiagnoseOptions(), floor_cost, max_p)
+
+
+def test_the_bic_compares_the_windows_both_fits_were_fitted_on():
+    """A window a fit left out (its model leaves the start open) holds no evidence between two
+    models: the BIC compares them on the rest, whatever each predicts there."""
+    from mjjoint.diagnosis.loop import _bic_lower
+    ref = _fit(1.0, 0.01)
+    cand = _fit(0.5, 0.005, nparams=7, left_out=(3, 9))
+    cand.train_costs[[3, 9]] = 1e3  # its open windows, far off
+    assert _bic_lower(_PREDICTOR, ref, cand)
+    ref.train_costs[[3, 9]] = 1e-6  # the windows left out count for neither model
+    assert _bic_lower(_PREDICTOR, ref, cand)
+    cand.train_costs[0] = 1e3       # a window it was fitted on counts
+    assert not _bic_lower(_PREDICTOR, ref, cand)
+    assert not _bic_lower(_PREDICTOR, ref, _fit(1.0, 0.01, nparams=7))  # two parameters more for nothing
 
 
 def test_only_a_material_gain_failing_the_rank_test_alone_is_looked_at_again(monkeypatch):

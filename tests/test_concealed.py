@@ -30,19 +30,23 @@ def test_concealed_effect_is_named_and_nothing_else(effect, tmp_path):
         assert score.parameter_error is not None and score.parameter_error < 0.5, score
 
 
-# Seed 2's 2SEP lag is named, but its gain B lands at half the truth's: one breakaway after a
-# 0.8 s dwell holds most of the truth's own training cost, and the dwell's windup is not
-# recoverable from the recording at the precision that breakaway needs (docs/benchmark.md,
-# "Concealed-effect benchmark").
-LAG_GAIN_OFF = pytest.mark.xfail(strict=True, reason="2SEP is named but its lag gain B is 51 % off the truth")
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("effect", [pytest.param(e, marks=LAG_GAIN_OFF) if e == "dynamic_friction" else e
-                                    for e in CONCEALED])
+@pytest.mark.parametrize("effect", CONCEALED)
 def test_full_case_set(effect, tmp_path):
     score = run_case(effect, seed=2, folder=tmp_path, duration=20.0)
     assert score.passed, score
+
+
+@pytest.mark.slow
+def test_a_base_fit_stalled_far_above_the_floor_is_continued_and_the_lag_named(tmp_path):
+    """Seed 1's 2SEP truth: the least-squares base fit stalls at a held-out cost of 0.21, its
+    breakaways holding it, and from there no screen gains; continued under the robust loss it
+    reaches 0.00065 and 2SEP is named, the final model predicting the held-out windows as the
+    truth does. (Its lag gain B lands 22 % low: fitted from the truth itself, without the windows
+    the recording leaves open, it lands at 31 against 40; docs/benchmark.md.)"""
+    score = run_case("dynamic_friction", seed=1, folder=tmp_path, duration=20.0)
+    assert score.named and not score.false_additions, score
+    assert score.nrmse_after <= 1.1 * score.nrmse_truth, score
 
 
 @pytest.mark.slow

@@ -10,9 +10,9 @@ import pytest
 
 from mjjoint.benchmark.cases import GEAR_RATIO, make_case
 from mjjoint.rehearse import LabProgram, record
-from mjjoint.identify.fit import fit
+from mjjoint.identify.fit import fit, window_costs
 from mjjoint.identify.structure import Structure
-from mjjoint.identify.windows import REVERSAL_BAND, Measured, Predictor, WindowDesign, lead_samples
+from mjjoint.identify.windows import REVERSAL_BAND, UNDETERMINED, Measured, Predictor, WindowDesign, lead_samples
 from mjjoint.recordings import Recording
 
 RATE = 1000.0
@@ -45,10 +45,15 @@ def lab():
     return case.truth, Measured.from_recording(Recording(gear_ratio=GEAR_RATIO, meta={}, **cols), GEAR_RATIO)
 
 
+def _static(truth: Structure) -> Structure:
+    """The truth without 2SEP: its other effects at their values."""
+    return Structure.create(tuple(e for e in truth.effects if e != "dynamic_friction"), truth.nominal,
+                            truth.gear_ratio, {k: v for k, v in truth.values.items() if "dynamic_friction" not in k})
+
+
 def test_only_2sep_models_and_only_their_resting_windows_are_changed(lab):
     truth, measured = lab
-    static = Structure.create(tuple(e for e in truth.effects if e != "dynamic_friction"), truth.nominal,
-                              truth.gear_ratio, {k: v for k, v in truth.values.items() if "dynamic_friction" not in k})
+    static = _static(truth)
     without, with_lead = (Predictor(measured, WindowDesign(seed=0, lead=lead)) for lead in (0.0, 1.0))
     for a, b in zip(without.predict([static]), with_lead.predict([static])):
         for k in a:
@@ -58,6 +63,29 @@ def test_only_2sep_models_and_only_their_resting_windows_are_changed(lab):
     assert 0 < resting.sum() < len(resting)
     np.testing.assert_array_equal(a["q"][~resting], b["q"][~resting])
     assert np.all(np.any(a["q"][resting] != b["q"][resting], axis=1))
+
+
+def test_the_undetermined_windows_are_breakaways_from_rest_of_a_2sep_model(lab):
+    """A window whose prediction depends on where the lead-in through the stop before it starts
+    (``Predictor.undetermined``) starts at rest and breaks away within it; a window at rest
+    throughout, or one without 2SEP, is never undetermined. The truth's own cost there is far
+    above its cost on the windows that start moving: the states the recording does not fix."""
+    truth, measured = lab
+    pred = Predictor(measured, WindowDesign(seed=0))
+    every = np.arange(len(pred.starts))
+    static = _static(truth)
+    before = pred.rollouts
+    assert pred.undetermined(static, every).size == 0 and pred.rollouts == before  # nothing rolled out
+    open_ = pred.undetermined(truth, every)
+    assert open_.size > 0
+    moves = np.abs(measured.qd[pred.samples]).max(axis=1) > measured.moving_speed
+    assert np.all(pred.lead_samples[open_] > 0) and np.all(moves[open_])
+    resting = pred.lead_samples > 0
+    assert not set(open_) & set(np.flatnonzero(resting & ~moves))
+    spread = pred.lead_in_spread(truth, open_)
+    assert np.all(spread > UNDETERMINED)
+    costs = window_costs(pred, truth, every)
+    assert costs[open_].min() > 10 * np.median(costs[~resting])
 
 
 def test_a_window_is_predicted_alike_whatever_windows_come_with_it(lab):
@@ -85,6 +113,12 @@ def test_the_lag_gain_is_recovered_with_the_lead_in(lab):
     history along the measured path, B lands at 0.28 of the truth: a stop's motion under an
     encoder count sets the lag's windup at rest, and the measured path does not hold it.)"""
     truth, measured = lab
-    f = fit(Predictor(measured, WindowDesign(seed=0, lead=1.0)), truth)
+    pred = Predictor(measured, WindowDesign(seed=0, lead=1.0))
+    f = fit(pred, truth)
     b = f.structure.values["dynamic_friction.b"] / truth.values["dynamic_friction.b"]
     assert abs(b - 1) < 0.1, b
+    # resting windows the fitted model leaves open are left out of its fit; none it kept is open
+    resting = set(np.flatnonzero(pred.lead_samples > 0).tolist()) & set(pred.train.tolist())
+    assert f.left_out and set(f.left_out) <= resting
+    assert pred.undetermined(f.structure, np.setdiff1d(pred.train, f.left_out)).size == 0
+    assert len(f.train_costs) == len(pred.train)

@@ -84,8 +84,8 @@ def test_a_rival_named_first_is_swapped_for_the_effect_that_explains_the_recordi
 
 def test_an_effect_that_only_carries_the_others_to_a_better_fit_is_a_stand_in(backlash_recording):
     """The play named, its fit stalled; the hysteretic gear added passes the acceptance rule
-    against the stalled fit, and the guard refuses it: fitted freely its parameters end on their
-    bounds; held off them (nearly elastic), the model with the play alone, refitted from the values the addition
+    against the stalled fit, and the guard refuses it: fitted freely its parameters may end on
+    their bounds; held off them (nearly elastic), the model with the play alone, refitted from the values the addition
     reached, does at least as well. Either way the model with the play alone, refitted from there,
     predicts better than the stalled fit: the loop keeps it."""
     case, predictor = backlash_recording
@@ -104,7 +104,8 @@ def test_an_effect_that_only_carries_the_others_to_a_better_fit_is_a_stand_in(ba
         refusal, freer = stand_in(predictor, stalled, added, step, [_step("backlash")], options, floor_cost,
                                   lines.append)
         assert refusal is not None and refusal.kind == "stand-in", lines
-        if not held:
+        own = {p.name for p in EFFECTS["transmission_hysteresis"].params}
+        if set(added.on_bound) & own:  # where the free fit ends depends on the machine's arithmetic
             assert "on their bounds" in refusal.reason, refusal
         else:
             assert "re-explains what backlash" in refusal.reason, refusal

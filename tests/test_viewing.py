@@ -130,7 +130,8 @@ def test_phases_charge_what_runs_inside_each_to_it_alone():
 
 def test_a_diagnosis_says_where_its_rollouts_went(diagnosed):
     """Every rollout of a diagnosis is charged to one phase (diagnosis.json, ``budget.phases``, and
-    the last progress line); a final robust estimate is fitted only where the current one is not."""
+    the last progress line); a final robust estimate is fitted at the end only where the current
+    one is not one already, nor the base's made when the search found nothing."""
     import json
     out, lines = diagnosed
     budget = json.loads((out / "diagnosis.json").read_text())["budget"]
@@ -138,8 +139,10 @@ def test_a_diagnosis_says_where_its_rollouts_went(diagnosed):
     assert {"base fit", "locate", "screens, subset"} <= set(phases)
     assert sum(p["rollouts"] for p in phases.values()) == pytest.approx(budget["rollouts_full_length"], abs=0.1 * len(phases))
     assert any(line.split("] ", 1)[-1].startswith("spent: base fit ") for line in lines)
-    skipped = any("already under the robust loss" in line for line in lines)
-    assert skipped != ("final robust estimate" in phases)
+    refitted = any(line.split("] ", 1)[-1].startswith("final estimate: refitting") for line in lines)
+    assert refitted == ("final robust estimate" in phases)
+    assert refitted or any("already under the robust loss" in line or "final estimate: the base's" in line
+                           for line in lines)
 
 
 @pytest.fixture

@@ -166,7 +166,9 @@ def register_model(model_or_address, instance: int | None = None) -> list[int]:
     return rows
 
 
-_reported: set[tuple[int, int]] = set()  # (model, instance) whose config error was printed
+# (model, instance, message) of the config errors printed. The message is part of the key: a
+# freed model's address is reused, and another model's error there must still be said.
+_reported: set[tuple[int, int, str]] = set()
 
 
 def _row_for(m_addr: int, d_addr: int, instance: int) -> int:
@@ -175,8 +177,9 @@ def _row_for(m_addr: int, d_addr: int, instance: int) -> int:
     try:
         (row,) = register_model(m_addr, instance)
     except Exception as exc:  # noqa: BLE001 - a C caller cannot take a Python exception
-        if (m_addr, instance) not in _reported:  # compute retries every step: say it once
-            _reported.add((m_addr, instance))
+        key = (m_addr, instance, str(exc))
+        if key not in _reported:  # compute retries every step: say it once
+            _reported.add(key)
             print(f"mjjoint: plugin instance {instance}: {exc}", file=sys.stderr)
         return -1
     slots = abi.read_u64(d_addr + abi.offsets().d_plugin_data)

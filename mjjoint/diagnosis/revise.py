@@ -43,7 +43,7 @@ from ..identify.fit import FitResult, finish, fit
 from ..identify.intervals import Z95
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
-from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust, acceptance, bundle,
+from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust_kept, acceptance, bundle,
                    parts, screened_params, with_candidate)
 
 
@@ -297,12 +297,6 @@ def _refit(predictor: Predictor, result: FitResult, options: DiagnoseOptions) ->
     full = fit(predictor, result.structure, max_iter=options.fit_iter)
     best = full if full.cost_test < result.cost_test else result
     return _robust_kept(predictor, best, options) if options.robust_refit else best
-
-
-def _robust_kept(predictor: Predictor, result: FitResult, options: DiagnoseOptions) -> FitResult:
-    """``result`` refitted under the robust loss if that predicts the held-out windows better."""
-    robust, keep = _robust(predictor, result, options, None)
-    return robust if keep else result
 
 
 def step_models(initial: Structure, final: Structure, steps: list[Step]) -> list[Structure]:

@@ -106,6 +106,10 @@ class FitResult:
     seconds: float = 0.0
     coarse_iterations: int = 0  # of ``iterations``, those on the window subset (COARSE_SHARE)
     on_bound: tuple[str, ...] = ()  # fitted parameters on a bound (intervals.near_bound): stand-ins
+    # Per training window (``Predictor.train``), the mean squared normalised residual; and the
+    # training windows the fit left out, its model leaving their start open (``Predictor.undetermined``).
+    train_costs: np.ndarray | None = field(default=None, repr=False, compare=False)
+    left_out: tuple[int, ...] = ()
     starts: int = 1  # fits run from different starting points (``restarts``), the best kept
     robust: bool = False  # fitted under the robust loss over windows (``fit(robust=True)``)
     # Set on a fit stopped after its subset phase (``fit(subset_only=True)``): where ``finish``
@@ -421,22 +425,36 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
     """The LM on all of the fit's windows from the subset phase's end (``_fit_once``), then the
     intervals and the train/held-out scores."""
     structure, names, windows, lo, hi, x, done = st.structure, st.names, st.windows, st.lo, st.hi, st.x, st.done
-    coarse_done, scale = done, _scale_at(predictor, structure, names, st.robust, x, windows)
-    for _ in range(SCALE_ROUNDS):
-        obj, obj_scale = Objective(predictor, structure, names, windows, lo, hi, STEP_SE, scale), scale
-        x, k = _lm(obj, x, st.max_iter, _reporter(progress, done))
-        done += k
-        new = None if scale is None else _scale_at(predictor, structure, names, st.robust, x, windows, obj)
-        if new is None or new > scale / 2:
+    coarse_done = done
+    # The windows the fitted model leaves undetermined (``Predictor.undetermined``) are left out
+    # and the LM goes on without them, once. Not the start's: a start far off (the catalogue's
+    # values) flags the very breakaways that show the effect, and a fit without them misses it.
+    for redecided in (False, True):
+        scale = _scale_at(predictor, structure, names, st.robust, x, windows)
+        for _ in range(SCALE_ROUNDS):
+            obj, obj_scale = Objective(predictor, structure, names, windows, lo, hi, STEP_SE, scale), scale
+            x, k = _lm(obj, x, st.max_iter, _reporter(progress, done))
+            done += k
+            new = None if scale is None else _scale_at(predictor, structure, names, st.robust, x, windows, obj)
+            if new is None or new > scale / 2:
+                break
+            scale = new
+        best = structure.from_vector(x, names)
+        more = predictor.undetermined(best, windows)
+        if redecided or more.size == 0:
             break
-        scale = new
-    best = structure.from_vector(x, names)
+        windows = np.setdiff1d(windows, more)
     r, jac = obj.final(x)
     spans, warnings, optimum = intervals(jac, r, x, lo, hi, names, best, predictor.window_blocks(jac, len(windows)),
                                          predictor.window_blocks(r, len(windows)))
-    same = np.array_equal(windows, predictor.train)
-    ctr, cte, ntr, nte = evaluate(predictor, best, obj.prediction(x) if same else None)
+    train = predictor.train
+    ptr = obj.prediction(x) if np.array_equal(windows, train) else None
+    if ptr is None:
+        (ptr,) = predictor.predict([best], train)
+    ctr, cte, ntr, nte = evaluate(predictor, best, ptr)
     return FitResult(best, ctr, cte, ntr, nte, spans, warnings, iterations=done,
+                     train_costs=window_costs(predictor, best, train, ptr),
+                     left_out=tuple(int(w) for w in np.setdiff1d(st.windows, windows)),
                      rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start,
                      coarse_iterations=coarse_done, robust=st.robust,
                      on_bound=tuple(n for n, b in zip(names, near_bound(x, lo, hi)) if b),

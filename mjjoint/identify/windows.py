@@ -20,6 +20,7 @@ any periodic pattern can alias with a periodic excitation (a step every 0.5 s an
 """
 from __future__ import annotations
 
+import copy
 import ctypes
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -86,6 +87,15 @@ FLEX_LEAD = 0.1
 # Longest lead-in a window may ask for [s] (WindowDesign.lead): far beyond any dwell a lead-in is
 # for, and a bound on its cost.
 MAX_LEAD = 60.0
+# A resting window's 2SEP states come from a free lead-in through the stop before it, whose
+# start is a choice: the last sample faster than f x ``Measured.moving_speed``, f in
+# LEAD_FACTORS. Where the model's predictions from those starts differ by more than UNDETERMINED
+# noise floors (mean square per window), the recording does not fix the window's start state
+# for that model and the window is left out of its fit (``Predictor.undetermined``). On the
+# concealed dynamic_friction cases (``scripts/lead_in_spread.py``) the spread is 6-69 000 noise
+# floors on the breakaways after dwells, at most 1.2 on every other resting window.
+LEAD_FACTORS = (1.0, 3.0, 10.0)
+UNDETERMINED = 3.0
 
 
 @dataclass(frozen=True)
@@ -724,9 +734,51 @@ class Predictor:
         """Lead-in of each window [samples] (``_start_states``): back to the last sample where the
         motor moved faster than ``Measured.moving_speed``, at most ``design.lead`` and never across
         a join; 0 where the motor moves at the start."""
+        return self._lead_samples(1.0)
+
+    def _lead_samples(self, factor: float) -> np.ndarray:
+        """``lead_samples`` from the last sample faster than ``factor`` x moving_speed, for the
+        windows that start slower than moving_speed (the resting ones, whatever the factor)."""
         m = self.m
-        return lead_samples(m.qd, m.moving_speed, self.starts, m.joins,
-                            int(round(self.design.lead * m.rate)))
+        cap = int(round(self.design.lead * m.rate))
+        resting = lead_samples(m.qd, m.moving_speed, self.starts, m.joins, cap)
+        if factor == 1.0:
+            return resting
+        far = lead_samples(m.qd, factor * m.moving_speed, self.starts, m.joins, cap)
+        return np.where(resting > 0, np.maximum(resting, far), 0)
+
+    def with_lead(self, factor: float) -> "Predictor":
+        """This predictor (the same windows, scratch data and rollout count) with the resting
+        windows' lead-ins started at the last sample faster than ``factor`` x moving_speed."""
+        shifted = copy.copy(self)
+        shifted.__dict__["lead_samples"] = self._lead_samples(factor)
+        return shifted
+
+    def lead_in_spread(self, structure: Structure, windows: np.ndarray, factors=LEAD_FACTORS) -> np.ndarray:
+        """Per window, the largest mean squared difference between the structure's predictions
+        from lead-ins started at each of ``factors`` (``with_lead``), in noise floors."""
+        preds = []
+        for factor in factors:
+            shifted = self.with_lead(factor)
+            preds.append(shifted.predict([structure], windows)[0])
+            self.rollouts = shifted.rollouts
+        spread = np.zeros(len(windows))
+        for a in range(len(preds)):
+            for b in range(a + 1, len(preds)):
+                d = np.nan_to_num(self.residuals(preds[a], windows) - self.residuals(preds[b], windows), nan=1e3)
+                spread = np.maximum(spread, self.window_mean_squares(d, len(windows)))
+        return spread / self.noise_floor
+
+    def undetermined(self, structure: Structure, windows: np.ndarray) -> np.ndarray:
+        """Those of ``windows`` whose start state the recording leaves open for ``structure``:
+        resting windows whose ``lead_in_spread`` exceeds UNDETERMINED. Empty, and no rollout,
+        for a structure without lead-in states (no 2SEP), an unstable one, or no resting window."""
+        windows = np.asarray(windows)
+        rest = windows[self.lead_samples[windows] > 0]
+        if rest.size == 0 or not isinstance(structure.model_params()[1].friction, TwoSEP) \
+                or not self.stable(structure):
+            return rest[:0]
+        return rest[self.lead_in_spread(structure, rest) > UNDETERMINED]
 
     @cached_property
     def _held_input(self) -> tuple[np.ndarray, np.ndarray]:
