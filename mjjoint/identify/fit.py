@@ -440,8 +440,8 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
                 break
             scale = new
         best = structure.from_vector(x, names)
-        more = predictor.undetermined(best, windows)
-        if redecided or more.size == 0:
+        more = np.zeros(0, int) if redecided else predictor.undetermined(best, windows)
+        if more.size == 0:
             break
         windows = np.setdiff1d(windows, more)
     r, jac = obj.final(x)
