@@ -44,9 +44,9 @@ def test_the_verdict_does_not_claim_more_than_the_model_explains(diagnosis):
     assert "nothing significant is missing" not in diagnosis["verdict"]
 
 
-@pytest.mark.xfail(strict=True, reason="the hysteretic gear (a term of the truth) is named and absorbs the 0.3 mrad "
-                                       "play: backlash added to it lowers the held-out cost by under 10 %, and the "
-                                       "revision's swap for it raises it; the search stops at round 7 "
+@pytest.mark.xfail(strict=True, reason="where the search goes depends on the machine's arithmetic: on one the hysteretic "
+                                       "gear (a term of the truth) is named and absorbs the 0.3 mrad play; on another the "
+                                       "play is named but the 2SEP lag is not (p 0.19) and q ends at NRMSE 0.34 "
                                        "(docs/diagnosis.md)")
 def test_the_backlash_is_named_and_every_signal_is_predicted(diagnosis):
     assert "backlash" in diagnosis["missing"]
