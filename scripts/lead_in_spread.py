@@ -29,7 +29,7 @@ from mjjoint.benchmark.cases import GEAR_RATIO, NOMINAL, make_case
 from mjjoint.benchmark.score import write_case_recording
 from mjjoint.identify.fit import fit, window_costs
 from mjjoint.identify.structure import Structure
-from mjjoint.identify.windows import Measured, Predictor, WindowDesign
+from mjjoint.identify.windows import LEAD_FACTORS, Measured, Predictor, WindowDesign
 from mjjoint.recordings import read_recording
 
 
@@ -43,7 +43,7 @@ def predictor(measured: Measured, seed: int, factor: float = 1.0) -> Predictor:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
-    ap.add_argument("--factors", type=float, nargs="+", default=[1.0, 3.0, 10.0])
+    ap.add_argument("--factors", type=float, nargs="+", default=list(LEAD_FACTORS))
     ap.add_argument("--spread", type=float, default=2.0)
     ap.add_argument("--duration", type=float, default=20.0)
     ap.add_argument("--fit", action="store_true", help="also fit the truth (the fit leaves out the windows it leaves undetermined)")
@@ -76,10 +76,10 @@ def main() -> None:
         if args.fit:
             r = fit(first, case.truth, max_iter=30)
             v = r.structure.values
-            left = first.undetermined(r.structure, first.train)
             print(f"  fitted from the truth (leaving out the windows the fitted model leaves undetermined, "
-                  f"{left.tolist()} at its end): B {v['dynamic_friction.b']:.1f}, k {v['dynamic_friction.k']:.0f}, "
+                  f"{list(r.left_out)}): B {v['dynamic_friction.b']:.1f}, k {v['dynamic_friction.k']:.0f}, "
                   f"training cost {r.cost_train:.3g}, held-out {r.cost_test:.3g}", flush=True)
+
 
 if __name__ == "__main__":
     main()
