@@ -15,7 +15,7 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 
 from .assets import load_model
-from .coupling.kernels import joint_traces, settled_states
+from .coupling.kernels import joint_traces, settled_states, settled_transmission
 from .coupling.layout import NSTATE, STATE_NAMES, WP, WPL
 from .coupling.plugin import PLUGIN_NAME, block_for
 from .joint import JointParams
@@ -95,17 +95,28 @@ class JointIndex:
         """This instance's internal states, (..., NSTATE), in full-physics state rows (..., nstate): a view."""
         return full[..., self.state_start:self.state_start + NSTATE]
 
-    def settled(self, model: mujoco.MjModel, full: np.ndarray):
-        """Internal states at each row's own instant, and (q, qd, theta, thetad), each (n,), of
-        full-physics state rows ``full`` (n, nstate); a side fixed to the world reads 0."""
+    def motion(self, model: mujoco.MjModel, full: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(q, qd, theta, thetad), each (n,), of full-physics state rows ``full`` (n, nstate); a
+        side fixed to the world reads 0."""
         nq, zero = model.nq, np.zeros(len(full))
-        q = full[:, 1 + self.motor_qpos] if self.motor_qpos >= 0 else zero
-        qd = full[:, 1 + nq + self.motor_dof] if self.motor_dof >= 0 else zero
-        th = full[:, 1 + self.link_qpos] if self.link_qpos >= 0 else zero
-        thd = full[:, 1 + nq + self.link_dof] if self.link_dof >= 0 else zero
+        return (full[:, 1 + self.motor_qpos] if self.motor_qpos >= 0 else zero,
+                full[:, 1 + nq + self.motor_dof] if self.motor_dof >= 0 else zero,
+                full[:, 1 + self.link_qpos] if self.link_qpos >= 0 else zero,
+                full[:, 1 + nq + self.link_dof] if self.link_dof >= 0 else zero)
+
+    def settled(self, model: mujoco.MjModel, full: np.ndarray):
+        """Internal states at each row's own instant, and ``motion``, of full-physics state rows
+        ``full`` (n, nstate)."""
+        motion = self.motion(model, full)
         st = settled_states(self.block, np.ascontiguousarray(self.plugin_states(full)), full[:, 0],
-                            q, qd, th, thd, *self.steps(model))
-        return st, (q, qd, th, thd)
+                            *motion, *self.steps(model))
+        return st, motion
+
+    def transmission(self, model: mujoco.MjModel, full: np.ndarray) -> np.ndarray:
+        """The transmission torque at each of full-physics state rows ``full`` (n, nstate), from
+        the internal states at its own instant (``settled``)."""
+        return settled_transmission(self.block, self.plugin_states(full), full[:, 0], *self.motion(model, full),
+                                    *self.steps(model))
 
 
 def joint_indices(model: mujoco.MjModel) -> list[JointIndex]:

@@ -157,10 +157,7 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     friction levels and the rest of the link side are explicit.
     """
     n = blk[T.gear_ratio]
-    t = transmitted(blk, st, q, wq, theta, wtheta)
-    de = engaged(q / n - theta, blk[T.backlash])
-    in_gap = de == 0.0 and blk[T.backlash] > 0.0  # no torque passes, none of it damped
-    t += stiffness_limit(blk, st, t, de, in_gap, wq, wtheta, h, hj, hjl)
+    t, in_gap = transmission(blk, st, q, wq, theta, wtheta, h, hj, hjl)
     d_eng = 0.0 if in_gap else blk[T.damping]
     # Motor: -T/N - F + ripple.
     kind = blk[F.kind]
@@ -179,6 +176,16 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
         st[FOL2] = st[FOL]
     fb = bearing(blk, st, fl, wtheta, hjl) if blk[L.kind] != 0.0 else 0.0
     return fm, fl - fb, t, fric, fb - sl
+
+
+@kernel
+def transmission(blk, st, q, wq, theta, wtheta, h, hj, hjl):
+    """(T as ``joint_evaluate`` applies it, whether the teeth are apart): the spring (Eq. 18),
+    its stiffness beyond the step's limit taken implicitly (``stiffness_limit``)."""
+    t = transmitted(blk, st, q, wq, theta, wtheta)
+    de = engaged(q / blk[T.gear_ratio] - theta, blk[T.backlash])
+    in_gap = de == 0.0 and blk[T.backlash] > 0.0  # no torque passes, none of it damped
+    return t + stiffness_limit(blk, st, t, de, in_gap, wq, wtheta, h, hj, hjl), in_gap
 
 
 @kernel
@@ -373,6 +380,19 @@ def settled_states(blk, states, t, q, wq, theta, wtheta, h, hj, hjl):
     for i in range(out.shape[0]):
         joint_catch_up(blk, out[i], q[i], wq[i], theta[i], wtheta[i], t[i], h, hj, hjl)
     return out
+
+
+@kernel
+def settled_transmission(blk, states, t, q, wq, theta, wtheta, h, hj, hjl):
+    """``joint_traces``' transmission torque from ``settled_states``, row by row (neither a copy
+    of all rows nor the rotor and the bearing evaluated): ``states`` may be a strided view."""
+    tau = np.empty(q.shape[0])
+    st = np.empty(states.shape[1])
+    for i in range(q.shape[0]):
+        st[:] = states[i]
+        joint_catch_up(blk, st, q[i], wq[i], theta[i], wtheta[i], t[i], h, hj, hjl)
+        tau[i], _ = transmission(blk, st, q[i], wq[i], theta[i], wtheta[i], h, hj, hjl)
+    return tau
 
 
 @kernel

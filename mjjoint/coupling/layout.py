@@ -92,3 +92,8 @@ def steady_states(params, motion: dict[str, np.ndarray]) -> np.ndarray:
 def term_states(section: str) -> slice:
     """The plugin-state slots of a term's states."""
     return slice(_state_starts[section], _state_starts[section] + len(BY_SECTION[section].states))
+
+
+def term_slots(section: str) -> slice:
+    """The parameter-block slots of a term: its kind, then its fields."""
+    return slice(_starts[section], _starts[section] + 1 + len(BY_SECTION[section].fields))

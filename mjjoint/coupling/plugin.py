@@ -23,6 +23,7 @@ they call (``kernels``) is compiled with ``cache=True``.
 from __future__ import annotations
 
 import ctypes
+import functools
 import sys
 import threading
 
@@ -78,10 +79,17 @@ def _joint_addresses(m_addr: int, name: str) -> tuple[int, int]:
 
 def instance_joints(m_addr: int, instance: int) -> list[JointParams]:
     """The JointParams of the joints one instance drives (one, or a group's)."""
-    cfgs = split_config(_read_config(m_addr, instance))
+    return list(_parsed(tuple(_read_config(m_addr, instance).items())))
+
+
+@functools.lru_cache(maxsize=1024)
+def _parsed(config: tuple[tuple[str, str], ...]) -> tuple[JointParams, ...]:
+    """An instance's config parsed (memoised: identification compiles thousands of models of a
+    few configs, and each model's registration and joint lookup parses it)."""
+    cfgs = split_config(dict(config))
     if len(cfgs) > MAX_JOINTS:
         raise ValueError(f"one instance drives at most {MAX_JOINTS} joints, not {len(cfgs)}")
-    return [JointParams.from_config(c) for c in cfgs]
+    return tuple(JointParams.from_config(c) for c in cfgs)
 
 
 def instance_params(model: mujoco.MjModel) -> list[tuple[str, JointParams]]:

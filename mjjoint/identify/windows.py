@@ -31,8 +31,8 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 from scipy.signal import savgol_coeffs, savgol_filter
 
-from ..coupling.kernels import friction_history, hysteresis_history, joint_traces
-from ..coupling.layout import X, steady_states, term_states
+from ..coupling.kernels import friction_history, hysteresis_history
+from ..coupling.layout import TRANSMISSION, X, steady_states, term_slots, term_states
 from ..assets.stability import check_model_stability
 from ..coupling.mjlog import mujoco_log_silenced
 from ..coupling.plugin import register_model
@@ -59,6 +59,9 @@ VELOCITY_ORDER = 3
 # speed (716 window rollouts of a 60 s lab recording, 2 cores: 0.69 s in two chunks, 0.76 s
 # in one). Peak memory: scripts/bench_fit.py --memory.
 ROLLOUT_BUFFER = 64 * 2 ** 20
+# The internal states' histories along the recording kept for reuse (``Predictor._history``):
+# a 10-minute recording's 2SEP history is 24 MB, its Bouc-Wen history 5 MB.
+HISTORY_BYTES = 32 * 2 ** 20
 # 2SEP's window-start states are run along the measured motor angle, with the angle's retraces
 # smaller than its measurement noise taken for none: a play operator of half-width
 # REVERSAL_BAND x the noise std (``Measured.q_path``). A resting motor's quantised encoder
@@ -382,6 +385,7 @@ class Predictor:
         self.meas = meas
         self.rollouts = 0.0  # in full-recording equivalents
         self._scratch: dict = {}  # rollout MjData per model signature (_datas)
+        self._histories: dict = {}  # internal states along the recording (_history)
 
     def _model(self, structure: Structure):
         """The compiled model a structure is simulated on (memoised): the single joint's."""
@@ -531,7 +535,7 @@ class Predictor:
                 mj_rollout.rollout(models[a:b], datas, x0[a:b], rows(a, b), control_spec=self.control_spec,
                                    state=state[:b - a], sensordata=sens[:b - a], persistent_pool=True)
             yield a, b, state[:b - a]
-            release_freed()  # the chunk's arrays, consumed
+            release_freed(state.nbytes + sens.nbytes)  # the chunk's arrays, consumed (sized as its buffers)
 
     def _stretches(self, model, x0: np.ndarray, ctrl: np.ndarray, sub: int):
         """One row (x0 (1, nx), ctrl (1, steps, nu)) rolled out in consecutive stretches of whole
@@ -561,8 +565,8 @@ class Predictor:
     def _signals(self, model, full: np.ndarray, ji) -> dict[str, np.ndarray]:
         nw, ns, nx = full.shape
         flat = full.reshape(nw * ns, nx)
-        st, (q, qd, th, thd) = ji.settled(model, flat)
-        tau, _, _ = joint_traces(ji.block, st, q, qd, th, thd, *ji.steps(model))
+        q, _, th, _ = ji.motion(model, flat)
+        tau = ji.transmission(model, flat)
         shape = (nw, ns)
         # Copies: views of q and theta would keep all of ``full`` (every state column) alive.
         return {"q": q.reshape(shape).copy(), "theta": th.reshape(shape).copy(),
@@ -576,7 +580,7 @@ class Predictor:
 
         ``skew`` [s]: the link encoder reads that late, so the link's state at a start is the one
         it reports ``skew`` later."""
-        d = mujoco.MjData(model)
+        d = self._datas(model)[0]  # a rollout's scratch data: each row sets every state it reads
         mujoco.mj_resetData(model, d)
         template = np.empty(mujoco.mj_stateSize(model, FULL))
         mujoco.mj_getState(model, d, template, FULL)
@@ -602,18 +606,38 @@ class Predictor:
             # 2SEP (last reversal, pre-sliding, lag) along the measured motor angle, its noise
             # chatter removed (REVERSAL_BAND), not guessed from the velocity's sign: the step
             # velocity is the path's displacement per sample.
-            history = np.concatenate([
-                friction_history(ji.block, np.diff(m.q_path[a:b], prepend=m.q_path[a]) * m.rate, 1.0 / m.rate, s0)
-                for (a, b), s0 in zip(m.segments, start)])
             fs = term_states("friction")
-            states[:, fs] = history[i0, fs]
+
+            def friction() -> np.ndarray:
+                return np.concatenate([
+                    friction_history(ji.block, np.diff(m.q_path[a:b], prepend=m.q_path[a]) * m.rate, 1.0 / m.rate,
+                                     s0)[:, fs] for (a, b), s0 in zip(m.segments, start)])
+            states[:, fs] = self._history((ji.block[term_slots("friction")], start[:, fs]), friction)[i0]
         if ji.params.term("hysteresis") is not None and m.delta is not None:
             # Bouc-Wen x along the measured deflection (rate independent: the path fixes it); the
             # loading-branch guess can be off by the whole loop for the entire window.
-            states[:, X] = np.concatenate([hysteresis_history(ji.block, m.delta_path[a:b], s0[X])
-                                           for (a, b), s0 in zip(m.segments, start)])[i0]
+            def hysteresis() -> np.ndarray:
+                return np.concatenate([hysteresis_history(ji.block, m.delta_path[a:b], s0[X])
+                                       for (a, b), s0 in zip(m.segments, start)])
+            key = (ji.block[term_slots("hysteresis")], ji.block[TRANSMISSION.backlash:TRANSMISSION.backlash + 1],
+                   start[:, X])
+            states[:, X] = self._history(key, hysteresis)[i0]
         ji.plugin_states(x0)[:] = states
         return x0
+
+    def _history(self, key: tuple[np.ndarray, ...], run) -> np.ndarray:
+        """A term's states along the recording, ``run()``, memoised on ``key`` (the term's block
+        slots and its states at the recording's first samples): a Jacobian's columns that move
+        other parameters share one. The last HISTORY_BYTES of them are kept."""
+        k = tuple(a.tobytes() for a in key)
+        cache = self._histories
+        if k in cache:
+            cache[k] = cache.pop(k)  # the most recently used last
+        else:
+            cache[k] = run()
+            while sum(h.nbytes for h in cache.values()) > HISTORY_BYTES and len(cache) > 1:
+                del cache[next(iter(cache))]
+        return cache[k]
 
     def _motion(self, i: np.ndarray, path: bool = False) -> dict[str, np.ndarray]:
         """The measured motion at samples ``i`` (``Term.steady``): with ``path``, the deflection
@@ -872,14 +896,26 @@ def _glibc_trim():
 _MALLOC_TRIM = _glibc_trim()
 
 
-def release_freed() -> None:
-    """Hands the heap pages of freed arrays back to the system (glibc's ``malloc_trim``).
+_UNTRIMMED = [0]  # bytes freed since the last trim (``release_freed``)
+# Each trim walks the heap (~0.2 ms), as long as a small batch's rollout: trimmed once this
+# much has been freed, the resident memory stays within it of what the arrays hold at once.
+TRIM_BYTES = 32 * 2 ** 20
+
+
+def release_freed(freed: int | None = None) -> None:
+    """Hands the heap pages of freed arrays back to the system (glibc's ``malloc_trim``): at
+    once, or with ``freed`` (bytes just freed) once TRIM_BYTES have been freed since the last.
 
     Once glibc has freed a mapped block of a few MB it raises its mapping threshold to that size
     (up to 32 MB), and later arrays of that size come from the heap; freed, their pages stay
     resident. A batch of windows makes many such arrays per rollout chunk, so without this the
     resident memory of a long recording's fit grows by what its chunks ever held, not by what
     they hold at once (a 120 s recording's base fit kept ~75 MB more). A no-op elsewhere."""
+    if freed is not None:
+        _UNTRIMMED[0] += freed
+        if _UNTRIMMED[0] < TRIM_BYTES:
+            return
+    _UNTRIMMED[0] = 0
     if _MALLOC_TRIM is not None:
         _MALLOC_TRIM(0)
 
