@@ -80,3 +80,31 @@ def test_a_screen_the_model_refuses_is_reported_and_a_refined_step_goes_back_whe
     stiff = soft.with_values({"transmission_damping.d": 1e3})
     assert not pred.stable(dataclasses.replace(stiff, nominal=ArmSpec(timestep=h)))
     assert _at_step(pred, stiff, h) is stiff
+
+
+def _choice(failed, only_inconsistent):
+    from mjjoint.diagnosis.loop import _Choice
+    return _Choice(best="dynamic_friction", cand=None, gain=0.464, alternatives=[],
+                   consistency={"n": 10, "p": 0.193}, failed=failed, only_inconsistent=only_inconsistent)
+
+
+def test_a_mismatch_that_remains_names_the_candidate_the_tests_refused():
+    """Effects named, the rest not explained: the verdict says which candidate came closest and
+    why it was not named; where only the rank test refused it, on how many windows."""
+    from types import SimpleNamespace
+
+    from mjjoint.diagnosis.floor import Floor
+    from mjjoint.diagnosis.loop import Step, _verdict, rejection
+    only_rank = rejection(_choice(["paired p = 0.193 > 0.05"], True))
+    assert only_rank.startswith("the best candidate, dynamic_friction, lowers the held-out cost by 46.4 %")
+    assert only_rank.endswith("on 10 held-out windows (a longer recording, with more of them, would decide)")
+    small = rejection(_choice(["paired p = 0.193 > 0.05", "gain 4.6 % < 10 %"], False))
+    assert "held-out windows" not in small and small.endswith("gain 4.6 % < 10 %")
+    step = Step(effect="backlash", evidence=[], where={}, parameters={}, fit_before={}, fit_after={}, gain=0.39,
+                screened={})
+    fit = SimpleNamespace(nrmse_test={"q": 0.34}, cost_test=0.083, structure=None)
+    floor = Floor(noise={"q": 0.0}, quantum={"q": 0.0}, measurement={"q": 0.07}, twin={}, signals=("q",))
+    text = _verdict([step], fit, fit, floor, False, {}, only_rank, {})
+    assert "a mismatch remains" in text and only_rank in text
+    explained = dataclasses.replace(floor, measurement={"q": 0.34})
+    assert only_rank not in _verdict([step], fit, fit, explained, True, {}, only_rank, {})

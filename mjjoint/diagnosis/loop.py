@@ -56,7 +56,8 @@ stability check asks for (MAX_REFINE).
 Verdict: the final model's held-out NRMSE is judged against the recording's noise floor
 (``floor``): "explained" when every signal is within the floor's ratio. The verdict says one of:
 explained to the noise, nothing missing; effects found and the rest explained; effects found but
-a mismatch remains (which signal, how far above its floor, where and under which conditions);
+a mismatch remains (which signal, how far above its floor, where and under which conditions,
+and the last round's best candidate with the tests it failed);
 nothing in the catalogue explains the located mismatch. Parameters the final fit left on a
 bound are named as stand-ins. A candidate whose screen ended above the model it extends (its
 fit did not converge: the candidate contains that model) is not ruled out by it; while the
@@ -402,8 +403,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         best, cand, gain = choice.best, choice.cand, choice.gain
         unresolved = unresolved_screens({**rest, **screened}, ref.cost_test)
         if choice.failed:
-            rejected = (f"the best candidate, {best}, {'lowers' if gain >= 0 else 'raises'} the held-out cost by "
-                        f"{100 * abs(gain):.1f} % but fails: {', '.join(choice.failed)}")
+            rejected = rejection(choice)
             say(f"best candidate {best}: held-out cost {-100 * gain:+.1f} % "
                 f"(abs {ref.cost_test - cand.cost_test:.3g}, paired p = {choice.consistency['p']:.3f} on "
                 f"{choice.consistency['windows']}): not significant")
@@ -422,6 +422,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                     final = None
                     continue
             break
+        rejected = ""  # a round before this one may have been searched again from
         alternatives, consistency = [a.replace(BUNDLE, ' + ') for a in choice.alternatives], choice.consistency
         tested_on, p_value = consistency["windows"], consistency["p"]
         keys = best.split(PAIR)
@@ -566,7 +567,8 @@ def _verdict(steps: list[Step], initial: FitResult, final: FitResult, floor: Flo
     if steps and explained:
         text = f"missing physics found: {named}; with it the recording is explained to the noise"
     elif steps:
-        text = f"missing physics found: {named}; a mismatch remains: {mismatch(final, floor, where)}"
+        text = (f"missing physics found: {named}; a mismatch remains: {mismatch(final, floor, where)}"
+                + (f"; {rejected}" if rejected else ""))
     elif explained:
         text = "explained to the noise: nothing is missing" + (f"; {rejected}" if rejected else "")
     else:
@@ -784,6 +786,17 @@ class _Choice:
     consistency: dict
     failed: list[str]  # the acceptance tests the best candidate fails; empty: it is named
     only_inconsistent: bool  # material and BIC-supported, failing only the rank test
+
+
+def rejection(choice: _Choice) -> str:
+    """Why a round's best candidate was not named, for the verdict; where only the rank test
+    refused a material gain, how many held-out windows it had."""
+    text = (f"the best candidate, {choice.best}, {'lowers' if choice.gain >= 0 else 'raises'} the held-out cost by "
+            f"{100 * abs(choice.gain):.1f} % but fails: {', '.join(choice.failed)}")
+    if choice.only_inconsistent:
+        text += (f" on {choice.consistency['n']} held-out windows (a longer recording, with more of them, would "
+                 "decide)")
+    return text
 
 
 def _decide(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],
