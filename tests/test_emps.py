@@ -146,3 +146,23 @@ def test_the_diagnosed_model_meets_the_published_one_on_its_own_terms(estimation
     assert idim_relative_error(estimation.recording, ours) < PUBLISHED.error_estimation
     assert idim_relative_error(validation, ours) < PUBLISHED.error_validation
     assert abs(idim_least_squares(estimation.recording, asymmetric=True)[3]) < 0.1 * abs(PUBLISHED.offset)
+
+
+@needs_data
+@pytest.mark.slow
+def test_the_command_line_alone_names_the_direction_dependent_viscous_slope(estimation, tmp_path):
+    """docs/datasets.md's command (no script): the same three effects, no offset, and the two
+    slopes the constant-speed plateaus show, within 5 %, in the recording's own units."""
+    import json
+
+    from mjjoint.cli import main
+    out = tmp_path / "emps_cli"
+    assert main(["diagnose", str(DATA / ESTIMATION), "--plant", "linear", "--columns", "t=t,u=vir,q=qm,theta=qm",
+                 "--scales", "u=35.15065188", "--out", str(out)]) == 0
+    d = json.loads((out / "diagnosis.json").read_text())
+    assert "viscous_asymmetry" in d["missing"] and "input_offset" not in d["missing"]
+    values = d["final_model"]["parameters"]
+    sigma, r = values["viscous_friction.sigma"], values["viscous_asymmetry.ratio"]
+    plateaus = sliding_friction(estimation.recording, PUBLISHED.mass)
+    assert sigma * (1 + r) == pytest.approx(plateaus[1][0], rel=0.05)
+    assert sigma * (1 - r) == pytest.approx(plateaus[-1][0], rel=0.05)
