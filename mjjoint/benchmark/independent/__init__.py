@@ -5,9 +5,9 @@ its recordings test the diagnosis against physics it was not written with (docs/
 "Out-of-regime set").
 """
 from .friction import LuGre, MaxwellSlip, PositionDependence
-from .gear import BoucWenLaw, PlayHysteresis
+from .gear import BoucWenLaw, StopHysteresis
 from .plant import Cogging, JointPlant, Rod, simulate
 from .record import Excitation, Sensors, record, write_csv
 
-__all__ = ["BoucWenLaw", "Cogging", "Excitation", "JointPlant", "LuGre", "MaxwellSlip", "PlayHysteresis",
+__all__ = ["BoucWenLaw", "Cogging", "Excitation", "JointPlant", "LuGre", "MaxwellSlip", "StopHysteresis",
            "PositionDependence", "Rod", "Sensors", "record", "simulate", "write_csv"]

@@ -17,7 +17,7 @@ from typing import Callable
 import numpy as np
 
 from .friction import LuGre, MaxwellSlip, PositionDependence
-from .gear import BoucWenLaw, PlayHysteresis
+from .gear import BoucWenLaw, StopHysteresis
 from .plant import Cogging, JointPlant, Rod
 from .record import Excitation, Sensors
 
@@ -85,12 +85,12 @@ def _boucwen(r):
         {"right": ("transmission_hysteresis",)}
 
 
-def _play_gear(r):
+def _prandtl_gear(r):
     p = _lab(r)
     radii = tuple(np.array([0.5, 1.5, 3.0]) * r.uniform(1e-3, 2e-3))
     share = r.uniform(0.3, 0.5)
     weights = tuple(np.full(3, share * p.stiffness / 3))
-    return _with(p, hysteresis=PlayHysteresis(elastic=(1 - share) * p.stiffness, radii=radii, weights=weights)), \
+    return _with(p, hysteresis=StopHysteresis(elastic=(1 - share) * p.stiffness, radii=radii, weights=weights)), \
         {"right": ("transmission_hysteresis",)}
 
 
@@ -176,7 +176,7 @@ CASES: dict[str, tuple[str, Callable]] = {
     "coarse_encoder": ("nothing beyond the base; 11-bit motor encoder with noise", _coarse_encoder),
     "backlash_wide": ("backlash 0.7-1.5 mrad", _backlash),
     "boucwen_soft": ("Bouc-Wen gear, elastic share 0.6-0.8, x_u 4-8 mrad", _boucwen),
-    "play_gear": ("Prandtl-Ishlinskii gear hysteresis (three play operators)", _play_gear),
+    "prandtl_gear": ("Prandtl-Ishlinskii gear hysteresis (three elastic-plastic elements)", _prandtl_gear),
     "cogging": ("cogging torque at a non-integer period, 2.3-7.7 per motor radian", _cogging),
     "position_friction": ("Coulomb level varying 30-50 % with the motor angle (a generic form's structure)",
                           _position_friction),

@@ -4,9 +4,15 @@
   outside the gap and no torque passes inside it.
 * Bouc-Wen (Eqs. 16-17, linear stiffness, n = 1): T = mu k de + (1 - mu) k x,
   dx/dt = A de' - beta |de'| x - gamma de' |x|.
-* Prandtl-Ishlinskii (a different hysteresis law): T = k_e de + sum_i w_i P_ri(de), each P_r a
-  play operator of half-width r_i; piecewise linear loops with sharp corners, no Bouc-Wen
-  shape.
+* Prandtl-Ishlinskii of stop type (a different hysteresis law; an Iwan gear): T = k_e de +
+  sum_i w_i S_ri(de), S_r(de) = de - P_r(de) the stop operator, P_r the play operator of
+  half-width r: elastic-perfectly-plastic elements (a spring w_i behind a slider that gives at
+  w_i r_i) beside a spring k_e. Piecewise linear loops with sharp corners, no Bouc-Wen shape.
+  The play operators alone beside a spring (T = k_e de + sum w_i P_ri(de)) would run each loop
+  the other way round and give energy back: not a passive gear.
+
+Each law's ``stored`` energy does not grow along a motion that ends where it began: the loop
+work is dissipated (``tests/test_outside_plant.py``).
 """
 from __future__ import annotations
 
@@ -37,10 +43,17 @@ class BoucWenLaw:
     def torque(self, k: float, de: float, x: float) -> float:
         return self.mu * k * de + (1.0 - self.mu) * k * x
 
+    def stored(self, k: float, de: float, x: float) -> float:
+        """mu k de^2 / 2 + (1 - mu) k x^2 / (2 A): its rate is the power T de' less
+        (1 - mu) k (beta |de'| x^2 + gamma de' x |x|) / A, which beta >= |gamma| keeps >= 0."""
+        return 0.5 * self.mu * k * de * de + 0.5 * (1.0 - self.mu) * k * x * x / self.a
+
 
 @dataclass(frozen=True)
-class PlayHysteresis:
-    """Prandtl-Ishlinskii: elastic share k_e, play operators (half-widths r_i, weights w_i)."""
+class StopHysteresis:
+    """Prandtl-Ishlinskii of stop type: elastic share k_e, elastic-plastic elements (yield
+    half-widths r_i, stiffnesses w_i). The states are the sliders' positions p_i, the play
+    operators' outputs; each element's spring is stretched by de - p_i, at most r_i."""
 
     elastic: float                # [N m/rad]
     radii: tuple[float, ...]      # [rad]
@@ -57,4 +70,7 @@ class PlayHysteresis:
         return np.clip(p, de - r, de + r)
 
     def torque(self, de: float, p: np.ndarray) -> float:
-        return self.elastic * de + float(np.dot(self.weights, p))
+        return self.elastic * de + float(np.dot(self.weights, de - p))
+
+    def stored(self, de: float, p: np.ndarray) -> float:
+        return 0.5 * self.elastic * de * de + 0.5 * float(np.dot(self.weights, (de - p) ** 2))

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .friction import LuGre, MaxwellSlip, PositionDependence
-from .gear import BoucWenLaw, PlayHysteresis, dead_zone
+from .gear import BoucWenLaw, StopHysteresis, dead_zone
 
 MAX_RATE_STEP = 0.5  # h times the bristle's relaxation rate (accuracy, well inside RK4's 2.78)
 
@@ -64,21 +64,21 @@ class JointPlant:
     cogging: Cogging | None = None
     current_lag: float = 0.0            # [s]
     backlash: float = 0.0               # total width [rad]
-    hysteresis: BoucWenLaw | PlayHysteresis | None = None
+    hysteresis: BoucWenLaw | StopHysteresis | None = None
     rod: Rod | None = None
 
     # State layout: q, q', theta, theta', phi, phi', z (LuGre), x (Bouc-Wen), u_e, then the
-    # Maxwell elements, then the play operators.
+    # Maxwell elements, then the hysteretic gear's sliders.
     @property
     def n_maxwell(self) -> int:
         return len(self.friction.stiffness) if isinstance(self.friction, MaxwellSlip) else 0
 
     @property
-    def n_play(self) -> int:
-        return len(self.hysteresis.radii) if isinstance(self.hysteresis, PlayHysteresis) else 0
+    def n_sliders(self) -> int:
+        return len(self.hysteresis.radii) if isinstance(self.hysteresis, StopHysteresis) else 0
 
     def initial_state(self, u0: float = 0.0) -> np.ndarray:
-        s = np.zeros(9 + self.n_maxwell + self.n_play)
+        s = np.zeros(9 + self.n_maxwell + self.n_sliders)
         s[8] = u0
         return s
 
@@ -92,7 +92,7 @@ class JointPlant:
         h = self.hysteresis
         if isinstance(h, BoucWenLaw):
             spring = h.torque(self.stiffness, de, s[7])
-        elif isinstance(h, PlayHysteresis):
+        elif isinstance(h, StopHysteresis):
             spring = h.torque(de, s[9 + self.n_maxwell:])
         else:
             spring = self.stiffness * de
@@ -138,7 +138,7 @@ class JointPlant:
             d[8] = (u - s[8]) / self.current_lag
         if dmax is not None:
             d[9:9 + self.n_maxwell] = dmax
-        if self.n_play:
+        if self.n_sliders:
             d[9 + self.n_maxwell:] = self.hysteresis.rates(dde, de, s[9 + self.n_maxwell:])
         return d
 
@@ -146,7 +146,7 @@ class JointPlant:
         """Keep the rate-independent elements on their admissible sets after a step."""
         if self.n_maxwell:
             s[9:9 + self.n_maxwell] = self.friction.clip(s[9:9 + self.n_maxwell])
-        if self.n_play:
+        if self.n_sliders:
             de = dead_zone(s[0] / self.gear_ratio - s[2], self.backlash)
             s[9 + self.n_maxwell:] = self.hysteresis.clip(de, s[9 + self.n_maxwell:])
         return s
@@ -168,8 +168,16 @@ class JointPlant:
         return self.project(s + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4))
 
     def energy(self, s: np.ndarray) -> float:
-        """Kinetic + spring + gravity energy (the conservative parts; no hysteresis, no play)."""
-        t_spring = 0.5 * self.stiffness * dead_zone(s[0] / self.gear_ratio - s[2], self.backlash) ** 2
+        """Kinetic, gravity and stored energy: the springs', the hysteretic gear's (``stored``)
+        and the Maxwell elements'. Without input it can only fall."""
+        de = dead_zone(s[0] / self.gear_ratio - s[2], self.backlash)
+        h = self.hysteresis
+        if isinstance(h, BoucWenLaw):
+            t_spring = h.stored(self.stiffness, de, s[7])
+        elif isinstance(h, StopHysteresis):
+            t_spring = h.stored(de, s[9 + self.n_maxwell:])
+        else:
+            t_spring = 0.5 * self.stiffness * de ** 2
         e = 0.5 * self.motor_inertia * s[1] ** 2 + 0.5 * self.link_inertia * s[3] ** 2 + t_spring
         e += self.gravity_moment * (1 - math.cos(s[2]))
         if self.rod is not None:
