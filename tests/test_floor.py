@@ -10,7 +10,8 @@ import pytest
 
 from mjjoint import Multisine, Simulator
 from mjjoint.assets import ArmSpec
-from mjjoint.diagnosis.floor import EXPLAINED_RATIO, _analog_noise, noise_floor, quantisation_step, sensor_noise
+from mjjoint.diagnosis.floor import (EXPLAINED_RATIO, RESOLUTION, WINDOWING_TRUST, Floor, _analog_noise, noise_floor,
+                                     quantisation_step, sensor_noise)
 from mjjoint.identify import windows
 from mjjoint.identify.fit import evaluate
 from mjjoint.identify.structure import Structure
@@ -176,3 +177,28 @@ def test_parameters_left_on_a_bound_are_named_with_the_bound():
     at = s.with_values({"coulomb_friction.fc": fc.hi, "gravity.g": g.lo})
     result = SimpleNamespace(structure=at, on_bound=("coulomb_friction.fc", "gravity.g"))
     assert stand_ins(result) == {"coulomb_friction.fc": "upper", "gravity.g": "lower"}
+
+
+def test_the_twins_windowing_counts_only_up_to_a_multiple_of_what_the_recording_sets():
+    """A twin is made by the model under judgement: where its window starts cost far more than the
+    sensors' noise, "explained" is not claimed on its word alone, and the verdict says that part of
+    the rest may be the windows'. The absolute gain an effect must reach keeps the whole twin."""
+    from types import SimpleNamespace
+
+    from mjjoint.diagnosis.loop import mismatch
+    recorded, twin = 0.004, 0.028  # a small servo's tau: its twin 2.8x the sensors' floor (0.01)
+    floor = Floor(noise={"tau": 0.0}, quantum={"tau": 0.0}, measurement={"tau": recorded}, twin={"tau": twin},
+                  signals=("tau",))
+    assert floor.recorded["tau"] == RESOLUTION
+    assert floor.nrmse["tau"] == pytest.approx(WINDOWING_TRUST * RESOLUTION) and floor.capped == ("tau",)
+    assert floor.cost() == pytest.approx(twin ** 2)
+    within_twin = {"tau": 0.031}  # within 1.5x its twin, 3.1x the sensors'
+    assert within_twin["tau"] <= EXPLAINED_RATIO * twin and not floor.explained(within_twin)
+    assert floor.explained({"tau": 0.029})
+    text = mismatch(SimpleNamespace(nrmse_test=within_twin), floor, {})
+    assert text.startswith("tau held-out NRMSE 0.031 against a floor of 0.02 (2x the recording's; window starts "
+                           "cost the model's own twin 0.028")
+    # A twin within the trusted multiple is the floor as it is.
+    near = dataclasses.replace(floor, twin={"tau": 0.015})
+    assert near.nrmse["tau"] == 0.015 and near.capped == () and "twin" not in mismatch(
+        SimpleNamespace(nrmse_test={"tau": 0.05}), near, {})

@@ -20,8 +20,13 @@ report (rms error over the signal's spread within the held-out windows):
 - **resolution**: ``RESOLUTION`` of the spread, below which integration and interpolation
   differences between any two implementations of the same physics dominate.
 
-The floor of a signal is the largest of the three. The model explains the recording when every
-signal's held-out NRMSE is within ``EXPLAINED_RATIO`` of its floor.
+The floor of a signal is the largest of the three, but for the windowing's share: that comes from
+the model under judgement, not from the recording (a model that lacks physics can have a twin that
+its windows' starts cost more), so it counts up to ``WINDOWING_TRUST`` times what the recording
+alone sets (measurement noise, at least the resolution). The model explains the recording when
+every signal's held-out NRMSE is within ``EXPLAINED_RATIO`` of its floor. The absolute gain an
+effect must reach (``Floor.cost``) keeps the twin's whole misfit: it is the scale of what a right
+model still misses, not a claim.
 """
 from __future__ import annotations
 
@@ -36,6 +41,8 @@ from ..recordings import Recording
 
 RESOLUTION = 0.01      # NRMSE no model comparison resolves below (module doc)
 EXPLAINED_RATIO = 1.5  # held-out NRMSE up to this multiple of the floor: within the noise
+# The twin's windowing floor counts up to this multiple of the recording's own (module doc).
+WINDOWING_TRUST = 2.0
 # A quantisation step is accepted when this share of the nonzero sample-to-sample changes are
 # whole multiples of the smallest one (to QUANTUM_TOL of it): a float signal's changes are not.
 QUANTUM_SHARE = 0.95
@@ -62,9 +69,21 @@ class Floor:
     scored: tuple[str, ...] = field(default=())  # those the fit's cost scores (default: every one)
 
     @property
+    def recorded(self) -> dict[str, float]:
+        """What the recording alone sets: its measurement noise, at least the resolution."""
+        return {s: max(self.measurement[s], RESOLUTION) for s in self.signals}
+
+    @property
     def nrmse(self) -> dict[str, float]:
-        """The floor of each signal (module doc)."""
-        return {s: max(self.measurement[s], self.twin.get(s, 0.0), RESOLUTION) for s in self.signals}
+        """The floor of each signal (module doc): the twin's misfit counted up to WINDOWING_TRUST
+        times what the recording sets."""
+        return {s: max(r, min(self.twin.get(s, 0.0), WINDOWING_TRUST * r)) for s, r in self.recorded.items()}
+
+    @property
+    def capped(self) -> tuple[str, ...]:
+        """The signals whose twin misses by more than the floor counts."""
+        floor = self.nrmse
+        return tuple(s for s in self.signals if self.twin.get(s, 0.0) > floor[s])
 
     def ratios(self, nrmse: dict[str, float]) -> dict[str, float]:
         """Each signal's held-out NRMSE over its floor (inf where the prediction failed)."""
@@ -78,13 +97,13 @@ class Floor:
         """The floor in the fit's cost units: the mean squared normalised residual over the
         signals the cost scores (a signal reported but not scored, a deflection far above its
         floor, would otherwise set the absolute gain an effect must reach on the others)."""
-        floor = self.nrmse
-        return float(np.mean([floor[s] ** 2 for s in (self.scored or self.signals)]))
+        recorded = self.recorded
+        return float(np.mean([max(recorded[s], self.twin.get(s, 0.0)) ** 2 for s in (self.scored or self.signals)]))
 
     def as_dict(self) -> dict:
         return {"nrmse": self.nrmse, "measurement_nrmse": self.measurement, "twin_nrmse": self.twin,
                 "noise_std": self.noise, "quantisation_step": self.quantum,
-                "explained_ratio": EXPLAINED_RATIO, "resolution": RESOLUTION, **({"note": self.note} if self.note else {})}
+                "explained_ratio": EXPLAINED_RATIO, "windowing_trust": WINDOWING_TRUST, "resolution": RESOLUTION, **({"note": self.note} if self.note else {})}
 
 
 def quantisation_step(x: np.ndarray) -> float:
