@@ -196,8 +196,8 @@ def test_the_twins_windowing_counts_only_up_to_a_multiple_of_what_the_recording_
     assert within_twin["tau"] <= EXPLAINED_RATIO * twin and not floor.explained(within_twin)
     assert floor.explained({"tau": 0.029})
     text = mismatch(SimpleNamespace(nrmse_test=within_twin), floor, {})
-    assert text.startswith("tau held-out NRMSE 0.031 against a floor of 0.02 (2x the recording's; window starts "
-                           "cost the model's own twin 0.028")
+    assert text.startswith("tau held-out NRMSE 0.031 against a floor of 0.02 (its twin 0.028) (a floor counts the "
+                           "model's own twin up to 2x the recording's noise;")
     # A twin within the trusted multiple is the floor as it is.
     near = dataclasses.replace(floor, twin={"tau": 0.015})
     assert near.nrmse["tau"] == 0.015 and near.capped == () and "twin" not in mismatch(

@@ -600,14 +600,13 @@ def mismatch(final: FitResult, floor: Floor, where: dict) -> str:
     if not over:
         return "none above the noise floor"
     nf = floor.nrmse
-
-    def against(s: str) -> str:
-        if s not in floor.capped:
-            return f"a floor of {nf[s]:.3g}"
-        # A model whose own twin misses about as much may be right but for its windows' starts.
-        return (f"a floor of {nf[s]:.3g} ({WINDOWING_TRUST:g}x the recording's; window starts cost the "
-                f"model's own twin {floor.twin[s]:.3g}: part of it may be theirs, not missing physics)")
-    signals = ", ".join(f"{s} held-out NRMSE {final.nrmse_test[s]:.3g} against {against(s)}" for s in over)
+    capped = [s for s in over if s in floor.capped]
+    signals = ", ".join(f"{s} held-out NRMSE {final.nrmse_test[s]:.3g} against a floor of {nf[s]:.3g}"
+                        + (f" (its twin {floor.twin[s]:.3g})" if s in capped else "") for s in over)
+    if capped:  # a model whose own twin misses about as much may be right but for its windows' starts
+        signals += (f" (a floor counts the model's own twin up to {WINDOWING_TRUST:g}x the recording's noise; "
+                    "its window starts may cost the model as much, so part of the rest may be theirs, not "
+                    "missing physics)")
     loc = where.get("signals", {}).get(over[0], {})
     conds = [c["description"] for c in loc.get("conditions", []) if c.get("significant")]
     spans = loc.get("windows", [])[:3]
