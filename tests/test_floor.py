@@ -198,6 +198,9 @@ def test_the_twins_windowing_counts_only_up_to_a_multiple_of_what_the_recording_
     text = mismatch(SimpleNamespace(nrmse_test=within_twin), floor, {})
     assert text.startswith("tau held-out NRMSE 0.031 against a floor of 0.02 (its twin 0.028) (a floor counts the "
                            "model's own twin up to 2x the recording's noise;")
+    from mjjoint.report.summary import judged_lines
+    lines = judged_lines({"noise_floor": floor.as_dict(), "explained": False}, {"tau": 0.05}, within_twin)
+    assert lines[0].endswith("floor 0.0200 (twin 0.0280)") and lines[-1] == "explained to the noise: no"
     # A twin within the trusted multiple is the floor as it is.
     near = dataclasses.replace(floor, twin={"tau": 0.015})
     assert near.nrmse["tau"] == 0.015 and near.capped == () and "twin" not in mismatch(

@@ -82,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
           f"({result.iterations} iterations, {result.rollouts:.0f} full-length rollouts, {seconds:.1f} s, "
           f"best of {result.starts} start{'s' if result.starts > 1 else ''})")
     print(parameter_table(st.values, result.intervals, result.warnings, st.describe()["units"]))
-    print("held-out NRMSE per signal (noise floor: the fitted model's simulated twin):")
+    print("held-out NRMSE per signal (noise floor: the recording's noise and the fitted model's simulated twin, "
+          "counted up to twice it):")
     print("\n".join(judged_lines(data, result.nrmse_test)))
     if not data["explained"]:
         print("the model misses the recording above the noise: `mjjoint diagnose` looks for what it lacks")

@@ -113,9 +113,14 @@ def judged_lines(data: dict, before: dict[str, float], after: dict[str, float] |
     """``nrmse_lines`` with each signal's noise floor, and whether the recording is explained to
     the noise, from ``data``'s "noise_floor" and "explained" (diagnosis.json, fit.json)."""
     floor = (data.get("noise_floor") or {}).get("nrmse", {})
+    twin = (data.get("noise_floor") or {}).get("twin_nrmse", {})
+
+    def floor_of(s: str) -> str:  # the twin beside a floor that counts it only in part
+        if s not in floor:
+            return ""
+        return f"   floor {floor[s]:.4f}" + (f" (twin {twin[s]:.4f})" if twin.get(s, 0.0) > floor[s] else "")
     shown = [s for s in SIGNAL_ORDER if s in before]  # nrmse_lines' order
-    lines = [line + (f"   floor {floor[s]:.4f}" if s in floor else "")
-             for s, line in zip(shown, nrmse_lines(before, after))]
+    lines = [line + floor_of(s) for s, line in zip(shown, nrmse_lines(before, after))]
     return [*lines, f"explained to the noise: {'yes' if data.get('explained') else 'no'}"]
 
 
