@@ -11,8 +11,8 @@
   The play operators alone beside a spring (T = k_e de + sum w_i P_ri(de)) would run each loop
   the other way round and give energy back: not a passive gear.
 
-Each law's ``stored`` energy does not grow along a motion that ends where it began: the loop
-work is dissipated (``tests/test_outside_plant.py``).
+Each law's ``stored`` energy grows by no more than the work the torque does on the deflection:
+the loops dissipate (``tests/test_outside_plant.py``).
 """
 from __future__ import annotations
 
