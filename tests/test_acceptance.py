@@ -4,7 +4,8 @@ An effect such as 2SEP (pre-sliding, frictional lag) acts mainly after motor vel
 its held-out gain can sit in the few windows holding one, and a signed-rank test over all
 windows drowns it in the others' noise. Such an effect is also tested on the held-out windows in
 which the measured motion shows the condition (selected from the measured velocity only), and
-the smaller p, doubled (Bonferroni), decides.
+the smaller p, doubled (Bonferroni), decides. The per-window reductions are the log ratios of
+the windows' costs.
 """
 from __future__ import annotations
 
@@ -69,6 +70,32 @@ def test_an_effect_acting_in_few_windows_is_accepted_and_a_null_one_is_not():
     rate = np.mean([acceptance_p(np.random.default_rng(100 + s).standard_t(3, size=len(test)), inside)[0] <= MAX_P
                     for s in range(400)])
     assert rate <= 0.06
+
+
+def test_a_condition_that_holds_in_every_held_out_window_is_one_test_not_two():
+    """Where every held-out window holds the condition the two tests are the same test: its p
+    decides undoubled (a correction for two looks where there is one only loses power)."""
+    d = np.random.default_rng(5).normal(0.3, 1.0, 10)
+    p, p_all, p_cond = acceptance_p(d, np.ones(10, bool))
+    assert p == p_all == p_cond
+    some = np.ones(10, bool)
+    some[3] = False
+    assert acceptance_p(d, some)[0] == min(1.0, 2 * min(acceptance_p(d, some)[1:]))
+
+
+def test_windows_are_ranked_by_their_relative_gain_not_their_size(monkeypatch):
+    """Windows' costs span decades (a transient, a resting stretch): one large window that loses
+    3 % must not outrank seven that halve. With cost differences it would (p 0.098); with log
+    ratios it is the smallest reduction (p 2/2^8)."""
+    from mjjoint.diagnosis import loop
+    before = np.array([100.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0])
+    after = np.array([103.0, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5])
+    costs = {"before": before, "after": after}
+    monkeypatch.setattr(loop, "window_costs", lambda predictor, structure, w: costs[structure])
+    monkeypatch.setattr(loop, "condition_mask", lambda predictor, effect: (None, ""))
+    record = loop._consistency(SimpleNamespace(test=np.arange(8)), "backlash", "before", "after")
+    assert record["p"] == 2 / 2 ** 8
+    assert loop.rank_p(before - after) > 0.09
 
 
 def test_too_few_condition_windows_leave_the_all_window_test_alone():

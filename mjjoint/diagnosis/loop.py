@@ -41,9 +41,11 @@ memory of a resting motor), and least squares would let them bias the parameters
 Stopping rule (documented in docs/diagnosis.md): a candidate is accepted only if, on the
 held-out windows, it lowers the cost by at least ``min_gain`` (relative) and ``floor_share`` of
 the recording's noise floor (absolute: ``floor``, the current model's own twin), the per-window
-reductions are consistent (one-sided Wilcoxon
-signed-rank p <= ``max_p``: a few lucky windows do not make an effect; a rank test because the
-reductions are heavy-tailed, large on transients and small elsewhere), AND it lowers the BIC
+reductions are consistent (one-sided Wilcoxon signed-rank p <= ``max_p`` on the log ratios of
+the windows' costs: a few lucky windows do not make an effect; a rank test because the
+reductions are heavy-tailed, large on transients and small elsewhere; ratios because windows'
+costs span decades, and a difference would rank a window by its size rather than by its gain),
+AND it lowers the BIC
 n log(RSS/n) + p log(n), which charges every added parameter, over the training windows both
 fits were fitted on (``FitResult.left_out``).
 
@@ -899,7 +901,8 @@ def condition_mask(predictor: Predictor, effect: str) -> tuple[np.ndarray | None
 
 
 def rank_p(reductions: np.ndarray) -> float:
-    """One-sided Wilcoxon signed-rank p that the per-window reductions are positive."""
+    """One-sided Wilcoxon signed-rank p that the per-window reductions (log cost ratios) are
+    positive."""
     d = np.asarray(reductions, float)
     if not np.any(d != 0):
         return 1.0
@@ -910,30 +913,31 @@ def acceptance_p(reductions: np.ndarray, inside: np.ndarray | None = None) -> tu
     """(p that decides, p over all held-out windows, p over those ``inside`` the condition).
 
     Without a condition the all-window p decides. With one, the smaller of the two counts,
-    doubled (Bonferroni): the pair of tests keeps the level of one.
+    doubled (Bonferroni): the pair of tests keeps the level of one. Where every held-out window
+    holds the condition the two are one test, and its p decides as it is.
     """
     d = np.asarray(reductions, float)
     p_all = rank_p(d)
     if inside is None:
         return p_all, p_all, None
-    p_cond = rank_p(d[np.asarray(inside, bool)])
-    return min(1.0, 2.0 * min(p_all, p_cond)), p_all, p_cond
+    inside = np.asarray(inside, bool)
+    p_cond = rank_p(d[inside])
+    return (p_all if inside.all() else min(1.0, 2.0 * min(p_all, p_cond))), p_all, p_cond
 
 
 def _consistency(predictor: Predictor, effect: str, before: Structure, after: Structure) -> dict:
     """The consistency test of a candidate on the held-out windows (JSON-ready record)."""
     w = predictor.test
-    d = window_costs(predictor, before, w) - window_costs(predictor, after, w)
+    d = np.log(window_costs(predictor, before, w) / window_costs(predictor, after, w))
     inside, text = condition_mask(predictor, effect)
     p, p_all, p_cond = acceptance_p(d, inside)
     if inside is None:
         note = f" ({text})" if text else ""
         return {"windows": f"{len(w)} held-out windows{note}", "n": int(len(w)), "p": p}
     return {"windows": f"{len(w)} held-out windows (p {p_all:.3g}) and the {int(inside.sum())} with {text} "
-                       f"(p {p_cond:.3g}), Bonferroni", "n": int(len(w)), "n_condition": int(inside.sum()),
+                       f"(p {p_cond:.3g})" + ("" if inside.all() else ", Bonferroni"),
+            "n": int(len(w)), "n_condition": int(inside.sum()),
             "p_all_heldout": p_all, "p_condition": p_cond, "p": p}
-
-
 
 
 def _bic_lower(predictor: Predictor, ref: FitResult, cand: FitResult) -> bool:
