@@ -44,9 +44,8 @@ the recording's noise floor (absolute: ``floor``, the current model's own twin),
 reductions are consistent (one-sided Wilcoxon signed-rank p <= ``max_p`` on the log ratios of
 the windows' costs: a few lucky windows do not make an effect; a rank test because the
 reductions are heavy-tailed, large on transients and small elsewhere; ratios because windows'
-costs span decades, and a difference would rank a window by its size rather than by its gain),
-AND it lowers the BIC
-n log(RSS/n) + p log(n), which charges every added parameter, over the training windows both
+costs span a decade or more, and a difference would rank a window by its size, not its gain),
+AND it lowers the BIC n log(RSS/n) + p log(n), which charges every added parameter, over the training windows both
 fits were fitted on (``FitResult.left_out``).
 
 Candidates: every catalogued effect the model lacks; one behind a prerequisite the model lacks
