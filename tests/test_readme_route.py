@@ -2,8 +2,9 @@
 full joint) with a 0.3 mrad backlash, a 10 s multisine, ``mjjoint diagnose --base minimal``.
 
 The verdict must be a calibrated claim: never "nothing missing" and never "explained" while the
-final model misses far above the recording's noise floor. Naming the backlash itself from a
-minimal start is the target this route does not reach yet (docs/diagnosis.md, "The verdict").
+final model misses far above the recording's noise floor; every signal predicted to NRMSE 0.3 with
+no parameter on a bound. Keeping the backlash itself named to the end is the target this route
+does not reach yet (docs/diagnosis.md, "The verdict").
 """
 from __future__ import annotations
 
@@ -44,11 +45,13 @@ def test_the_verdict_does_not_claim_more_than_the_model_explains(diagnosis):
     assert "nothing significant is missing" not in diagnosis["verdict"]
 
 
-@pytest.mark.xfail(strict=True, reason="where the search goes depends on the machine's arithmetic: on one the hysteretic "
-                                       "gear (a term of the truth) is named and absorbs the 0.3 mrad play; on another the "
-                                       "play is named but the 2SEP lag is not (p 0.19) and q ends at NRMSE 0.34 "
-                                       "(docs/diagnosis.md)")
-def test_the_backlash_is_named_and_every_signal_is_predicted(diagnosis):
-    assert "backlash" in diagnosis["missing"]
+def test_every_signal_is_predicted_with_no_parameter_on_a_bound(diagnosis):
     assert not diagnosis["stand_ins"]
-    assert all(v < 0.3 for v in diagnosis["final_fit"]["nrmse_heldout"].values())
+    assert all(v < 0.3 for v in diagnosis["final_fit"]["nrmse_heldout"].values()), diagnosis["final_fit"]["nrmse_heldout"]
+
+
+@pytest.mark.xfail(strict=True, reason="the play is named beside the 2SEP lag, then removed by the revision step: "
+                                       "with the gear's damper and the lag named after it, a 0.3 mrad play no longer "
+                                       "gains on 10 held-out windows (docs/diagnosis.md)")
+def test_the_backlash_is_named(diagnosis):
+    assert "backlash" in diagnosis["missing"]
