@@ -89,14 +89,17 @@ class JointPlant:
         if de == 0.0 and self.backlash > 0.0:
             return 0.0, 0.0, 0.0
         dde = s[1] / n - s[3]
+        return self._spring(s, de, "torque") + self.damping * dde, de, dde
+
+    def _spring(self, s: np.ndarray, de: float, what: str) -> float:
+        """The gear spring's ``what``, "torque" or "stored" energy, at deflection de and state s:
+        the hysteretic law's with its own state slots, else the linear spring's."""
         h = self.hysteresis
         if isinstance(h, BoucWenLaw):
-            spring = h.torque(self.stiffness, de, s[7])
-        elif isinstance(h, StopHysteresis):
-            spring = h.torque(de, s[9 + self.n_maxwell:])
-        else:
-            spring = self.stiffness * de
-        return spring + self.damping * dde, de, dde
+            return getattr(h, what)(self.stiffness, de, s[7])
+        if isinstance(h, StopHysteresis):
+            return getattr(h, what)(de, s[9 + self.n_maxwell:])
+        return self.stiffness * de if what == "torque" else 0.5 * self.stiffness * de ** 2
 
     def motor_friction(self, s: np.ndarray, t_gear: float) -> tuple[float, float, np.ndarray | None]:
         """(friction torque, dz/dt of LuGre, dz/dt of the Maxwell elements) at state s, the gear
@@ -170,14 +173,7 @@ class JointPlant:
     def energy(self, s: np.ndarray) -> float:
         """Kinetic, gravity and stored energy: the springs', the hysteretic gear's (``stored``)
         and the Maxwell elements'. Without input it can only fall."""
-        de = dead_zone(s[0] / self.gear_ratio - s[2], self.backlash)
-        h = self.hysteresis
-        if isinstance(h, BoucWenLaw):
-            t_spring = h.stored(self.stiffness, de, s[7])
-        elif isinstance(h, StopHysteresis):
-            t_spring = h.stored(de, s[9 + self.n_maxwell:])
-        else:
-            t_spring = 0.5 * self.stiffness * de ** 2
+        t_spring = self._spring(s, dead_zone(s[0] / self.gear_ratio - s[2], self.backlash), "stored")
         e = 0.5 * self.motor_inertia * s[1] ** 2 + 0.5 * self.link_inertia * s[3] ** 2 + t_spring
         e += self.gravity_moment * (1 - math.cos(s[2]))
         if self.rod is not None:
