@@ -196,14 +196,17 @@ RAYLEIGH_ROD_SHARE = 33.0 / 140.0
 
 def _flexibility_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
     """Started where the rod's first mode with the hub held (a cantilever with its tip mass and
-    Rayleigh's share of the rod's, k = 3 EI / L^3) lies at the resonance the residual locates;
-    from the catalogue's EI where none is located."""
+    Rayleigh's share of the rod's, k = 3 EI / L^3) lies at the resonance the residual locates,
+    its hinges damped in the shipped rod's proportion to their stiffness; from the catalogue's
+    values where none is located."""
     freqs = [c["params"]["frequency_hz"] for c in conds if c["name"] == "resonance" and c["significant"]]
     arm = structure.nominal
     if not freqs:
         return [({}, {})]
     mass = structure.values.get("mass.tip", arm.tip_mass) + RAYLEIGH_ROD_SHARE * arm.rod_mass
-    return [({"link_flexibility.ei": mass * (2 * math.pi * freqs[0]) ** 2 * arm.rod_length ** 3 / 3}, {})]
+    ei = mass * (2 * math.pi * freqs[0]) ** 2 * arm.rod_length ** 3 / 3
+    return [({"link_flexibility.ei": ei,
+              "link_flexibility.damping": ArmSpec.segment_damping * ei / ArmSpec.rod_ei}, {})]
 
 
 def _friction_read(values, present=lambda f: True, coulomb: bool = True):
@@ -321,12 +324,17 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
             Param("torque_ripple.b", 0.0, -2.0, 2.0, log=False, unit="N m", dim="force")),
            _ripple, evidence=("periodic_q",), plot="motor_revolution", variants=_ripple_variants,
            term="ripple", read=lambda m: _when(m[1].ripple, _read_ripple)),
+    # A rod's own damping is as unknown as its stiffness: fixed, it leaves a mode's decay to be
+    # taken up by whatever other dissipation a candidate brings.
     Effect("link_flexibility", "bending of the link rod (distributed mass-spring, Fig. 5 (b))",
-           (Param("link_flexibility.ei", 500.0, 1.0, 1e6, unit="N m^2"),),
-           lambda m, v: _arm(m, segments=4, rod_ei=v["link_flexibility.ei"]), site="link",
+           (Param("link_flexibility.ei", 500.0, 1.0, 1e6, unit="N m^2"),
+            Param("link_flexibility.damping", ArmSpec.segment_damping, 1e-4, 1e3, unit="N m s/rad")),
+           lambda m, v: _arm(m, segments=4, rod_ei=v["link_flexibility.ei"],
+                             segment_damping=v["link_flexibility.damping"]), site="link",
            evidence=("resonance",), plot="spectrum", stand_ins=("linear_stiffness", "transmission_damping"),
            variants=_flexibility_variants,
-           read=lambda m: {"link_flexibility.ei": m[0].rod_ei} if getattr(m[0], "segments", 0) else None),
+           read=lambda m: ({"link_flexibility.ei": m[0].rod_ei, "link_flexibility.damping": m[0].segment_damping}
+                           if getattr(m[0], "segments", 0) else None)),
     Effect("input_delay", "dead time between commanded and applied motor torque",
            (Param("input_delay.delay", 1e-3, 0.0, 0.01, log=False, unit="s"),),
            lambda m, v: _arm(m, input_delay=v["input_delay.delay"]),
