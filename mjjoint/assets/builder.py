@@ -86,6 +86,11 @@ class ArmSpec:
         return rotary
 
     @property
+    def hinge_stiffness(self) -> float:
+        """Each segment hinge's stiffness [N m/rad]: EI over the segment's length."""
+        return self.rod_ei * max(self.segments, 1) / self.rod_length
+
+    @property
     def link_parameter(self) -> str:
         """How identification fits the link's inertia: as the tip mass (the payload is what is
         uncertain; it moves the inertia both ways) or, on a link without one, the hub inertia."""
@@ -129,7 +134,7 @@ def _rebuild_rod(spec: mujoco.MjSpec, arm: ArmSpec) -> None:
         if arm.segments > 0:
             joint = body.add_joint(name=f"flex{i}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0])
             joint.classname = seg_default
-            joint.stiffness[0] = arm.rod_ei * n / arm.rod_length
+            joint.stiffness[0] = arm.hinge_stiffness
             joint.damping[0] = arm.segment_damping
             joint.armature = arm.segment_armature
         geom = body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.01, 0, 0],

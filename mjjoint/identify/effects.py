@@ -190,23 +190,38 @@ def _lag_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
     return [({}, {}), ({"dynamic_friction.b": LAG_GAIN / 10}, {})]
 
 
+# The rod's damping as Rayleigh's stiffness-proportional coefficient beta = c / k of its hinges
+# [s]: a mode of frequency w is damped at the ratio beta w / 2 whatever the stiffness, so the
+# two parameters do not trade off. The catalogue's value is the shipped rod's.
+ROD_BETA = ArmSpec.segment_damping / ArmSpec().hinge_stiffness
+
+
+def _flexibility(model: Model, v: dict[str, float]) -> Model:
+    arm = dataclasses.replace(model[0], segments=4, rod_ei=v["link_flexibility.ei"])
+    return dataclasses.replace(arm, segment_damping=v["link_flexibility.beta"] * arm.hinge_stiffness), model[1]
+
+
+def _read_flexibility(model: Model) -> dict[str, float] | None:
+    arm = model[0]
+    if not getattr(arm, "segments", 0):
+        return None
+    return {"link_flexibility.ei": arm.rod_ei, "link_flexibility.beta": arm.segment_damping / arm.hinge_stiffness}
+
+
 # Rayleigh's share of a uniform cantilever's mass that moves with its tip in the first mode (33/140).
 RAYLEIGH_ROD_SHARE = 33.0 / 140.0
 
 
 def _flexibility_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
     """Started where the rod's first mode with the hub held (a cantilever with its tip mass and
-    Rayleigh's share of the rod's, k = 3 EI / L^3) lies at the resonance the residual locates,
-    its hinges damped in the shipped rod's proportion to their stiffness; from the catalogue's
-    values where none is located."""
+    Rayleigh's share of the rod's, k = 3 EI / L^3) lies at the resonance the residual locates;
+    from the catalogue's EI where none is located."""
     freqs = [c["params"]["frequency_hz"] for c in conds if c["name"] == "resonance" and c["significant"]]
     arm = structure.nominal
     if not freqs:
         return [({}, {})]
     mass = structure.values.get("mass.tip", arm.tip_mass) + RAYLEIGH_ROD_SHARE * arm.rod_mass
-    ei = mass * (2 * math.pi * freqs[0]) ** 2 * arm.rod_length ** 3 / 3
-    return [({"link_flexibility.ei": ei,
-              "link_flexibility.damping": ArmSpec.segment_damping * ei / ArmSpec.rod_ei}, {})]
+    return [({"link_flexibility.ei": mass * (2 * math.pi * freqs[0]) ** 2 * arm.rod_length ** 3 / 3}, {})]
 
 
 def _friction_read(values, present=lambda f: True, coulomb: bool = True):
@@ -328,13 +343,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     # taken up by whatever other dissipation a candidate brings.
     Effect("link_flexibility", "bending of the link rod (distributed mass-spring, Fig. 5 (b))",
            (Param("link_flexibility.ei", 500.0, 1.0, 1e6, unit="N m^2"),
-            Param("link_flexibility.damping", ArmSpec.segment_damping, 1e-4, 1e3, unit="N m s/rad")),
-           lambda m, v: _arm(m, segments=4, rod_ei=v["link_flexibility.ei"],
-                             segment_damping=v["link_flexibility.damping"]), site="link",
+            Param("link_flexibility.beta", ROD_BETA, 1e-7, 1e-2, unit="s")),
+           _flexibility, site="link",
            evidence=("resonance",), plot="spectrum", stand_ins=("linear_stiffness", "transmission_damping"),
-           variants=_flexibility_variants,
-           read=lambda m: ({"link_flexibility.ei": m[0].rod_ei, "link_flexibility.damping": m[0].segment_damping}
-                           if getattr(m[0], "segments", 0) else None)),
+           variants=_flexibility_variants, read=_read_flexibility),
     Effect("input_delay", "dead time between commanded and applied motor torque",
            (Param("input_delay.delay", 1e-3, 0.0, 0.01, log=False, unit="s"),),
            lambda m, v: _arm(m, input_delay=v["input_delay.delay"]),
