@@ -24,3 +24,14 @@ def test_a_rods_stiffness_and_damping_are_recovered(beta):
     v = fit(predictor, start).structure.values
     assert v["link_flexibility.ei"] == pytest.approx(300.0, rel=0.05)
     assert v["link_flexibility.beta"] == pytest.approx(beta, rel=0.1)
+
+
+def test_a_rod_of_negligible_damping_is_an_estimate_not_a_stand_in():
+    """beta's lower bound is a rod that still bends, barely damped: a fit there is no stand-in;
+    every other bound, EI's too, still marks one (``FitResult.on_bound``)."""
+    s = make_case("none", 0).truth.with_effect("link_flexibility")
+    names = ["link_flexibility.ei", "link_flexibility.beta"]
+    lo, hi = s.bounds(names)
+    assert s.stand_in_bounds(names, lo) == ("link_flexibility.ei",)
+    assert s.stand_in_bounds(names, hi) == tuple(names)
+    assert s.stand_in_bounds(names, (lo + hi) / 2) == ()

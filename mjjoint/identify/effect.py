@@ -29,6 +29,9 @@ class Param:
     log: bool = True
     unit: str = ""
     dim: str = ""        # physical dimension, for plants of other scales (see DIMENSIONS)
+    # The lower bound stands for a value the effect keeps its meaning at (a rod of negligible
+    # damping still bends): a fit there is an estimate, not a stand-in (``FitResult.on_bound``).
+    lo_physical: bool = False
 
     def to_unit(self, value: float) -> float:
         """Map a physical value to the optimiser's coordinate."""

@@ -343,7 +343,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     # taken up by whatever other dissipation a candidate brings.
     Effect("link_flexibility", "bending of the link rod (distributed mass-spring, Fig. 5 (b))",
            (Param("link_flexibility.ei", 500.0, 1.0, 1e6, unit="N m^2"),
-            Param("link_flexibility.beta", ROD_BETA, 1e-7, 1e-2, unit="s")),
+            Param("link_flexibility.beta", ROD_BETA, 1e-7, 1e-2, unit="s", lo_physical=True)),
            _flexibility, site="link",
            evidence=("resonance",), plot="spectrum", stand_ins=("linear_stiffness", "transmission_damping"),
            variants=_flexibility_variants, read=_read_flexibility),

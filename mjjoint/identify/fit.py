@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from mujoco import minimize
 
-from .intervals import EIG_FLOOR, Optimum, intervals, near_bound, profile_intervals, residual_variance
+from .intervals import EIG_FLOOR, Optimum, intervals, profile_intervals, residual_variance
 from .structure import Structure
 from .windows import Predictor
 
@@ -105,7 +105,7 @@ class FitResult:
     rollouts: float = 0.0
     seconds: float = 0.0
     coarse_iterations: int = 0  # of ``iterations``, those on the window subset (COARSE_SHARE)
-    on_bound: tuple[str, ...] = ()  # fitted parameters on a bound (intervals.near_bound): stand-ins
+    on_bound: tuple[str, ...] = ()  # fitted parameters on a bound that marks a stand-in (Structure.stand_in_bounds)
     # Per training window (``Predictor.train``), the mean squared normalised residual; and the
     # training windows the fit left out, its model leaving their start open (``Predictor.undetermined``).
     train_costs: np.ndarray | None = field(default=None, repr=False, compare=False)
@@ -457,7 +457,7 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
                      left_out=tuple(int(w) for w in np.setdiff1d(st.windows, windows)),
                      rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start,
                      coarse_iterations=coarse_done, robust=st.robust,
-                     on_bound=tuple(n for n, b in zip(names, near_bound(x, lo, hi)) if b),
+                     on_bound=best.stand_in_bounds(names, x),
                      at_optimum=_AtOptimum(optimum, names, windows, obj_scale))
 
 

@@ -13,6 +13,7 @@ from ..assets.plant import build_plant
 from .effects import (EFFECTS, Model, Param, Plant, base_params, check_effects, minimal_model, plant_effects,
                       rigid_gear)
 from .initial import Estimate
+from .intervals import BOUND_SHARE
 
 
 @dataclass(frozen=True)
@@ -88,6 +89,14 @@ class Structure:
         lo = np.array([p.to_unit(p.lo) if p.log else p.lo for p in ps])
         hi = np.array([p.to_unit(p.hi) if p.log else p.hi for p in ps])
         return lo, hi
+
+    def stand_in_bounds(self, names, x: np.ndarray) -> tuple[str, ...]:
+        """Of the parameters ``names`` at ``x`` (the optimiser's coordinates), those near a bound
+        that marks a stand-in: either bound, but a lower bound that is physical (``Param.lo_physical``)."""
+        lo, hi = self.bounds(names)
+        margin = BOUND_SHARE * (hi - lo)
+        return tuple(p.name for p, v, a, b, m in zip(self._select(names), x, lo, hi, margin)
+                     if v >= b - m or (v <= a + m and not p.lo_physical))
 
     def _select(self, names) -> tuple[Param, ...]:
         ps = self.params
