@@ -13,7 +13,7 @@ from ..assets.plant import build_plant
 from .effects import (EFFECTS, Model, Param, Plant, base_params, check_effects, minimal_model, plant_effects,
                       rigid_gear)
 from .initial import Estimate
-from .intervals import BOUND_SHARE
+from .intervals import near_bound
 
 
 @dataclass(frozen=True)
@@ -94,9 +94,8 @@ class Structure:
         """Of the parameters ``names`` at ``x`` (the optimiser's coordinates), those near a bound
         that marks a stand-in: either bound, but a lower bound that is physical (``Param.lo_physical``)."""
         lo, hi = self.bounds(names)
-        margin = BOUND_SHARE * (hi - lo)
-        return tuple(p.name for p, v, a, b, m in zip(self._select(names), x, lo, hi, margin)
-                     if v >= b - m or (v <= a + m and not p.lo_physical))
+        return tuple(p.name for p, v, a, b, at in zip(self._select(names), x, lo, hi, near_bound(x, lo, hi))
+                     if at and not (p.lo_physical and v < (a + b) / 2))
 
     def _select(self, names) -> tuple[Param, ...]:
         ps = self.params
