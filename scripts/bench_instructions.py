@@ -10,6 +10,8 @@ of a ratio compute the same motion and differ only in the joint physics.
   single joint     the shipped arm (build_arm defaults): the plugin, 2SEP + Bouc-Wen + load friction
   3-joint arm      mjjoint/assets/mjcf/arm3.xml: three plugin instances
   3-joint, 1 instance   the same arm with one plugin instance driving the three joints
+  plugin floor     the shipped arm with the plugin at its least: a linear gear spring, no friction,
+                   no hysteresis (MuJoCo's dispatch of one instance and the callback, nearly no physics)
   dcmotor anchor   the native reference: the single-joint bare arm whose motor actuator is
                    MuJoCo's C <dcmotor> with LuGre friction and cogging (scripts/bench_step.py)
 
@@ -41,12 +43,15 @@ from mujoco import rollout
 from mjjoint.assets import ASSETS_DIR, build_arm, load_model
 from mjjoint.assets.serial import build_serial_arm
 from mjjoint.assets.shipped_arms import arm3
+from mjjoint.joint import JointParams
+from mjjoint.physics.transmission import Transmission
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 CARRIED = mujoco.mjtState.mjSTATE_TIME | mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_QVEL
 STEPS, SEGMENT, REPEATS = 1000, 20, 7
 ARM3 = Path(ASSETS_DIR) / "arm3.xml"
-CASES = ("single joint", "3-joint arm", "3-joint, 1 instance", "dcmotor anchor")
+CASES = ("single joint", "3-joint arm", "3-joint, 1 instance", "plugin floor", "dcmotor anchor")
+FLOOR = JointParams(friction=None, load_friction=None, transmission=Transmission(hysteresis=None, k3=0.0))
 ORDER = [(name, side) for name in CASES for side in ("with", "bare")]  # the worker's dump order
 
 
@@ -63,7 +68,7 @@ def cases() -> dict[str, tuple[mujoco.MjModel, mujoco.MjModel]]:
     grouped = build_serial_arm(arm3(), one_instance=True)
     grouped_bare = without_plugins(build_serial_arm(arm3(), one_instance=True)).compile()
     pairs = ((load_model(build_arm()), bare), (load_model(ARM3), arm3_bare), (load_model(grouped), grouped_bare),
-             (dcmotor_model(), bare))
+             (load_model(build_arm(joint=FLOOR)), bare), (dcmotor_model(), bare))
     return dict(zip(CASES, pairs))
 
 
@@ -174,9 +179,10 @@ def main() -> None:
     print(f"mujoco {mujoco.__version__}; {steps} steps per configuration ({steps // args.segment} segments of "
           f"{args.segment}) from the same states; instructions inside mj_step (callgrind), wall = thread "
           f"CPU time, best of {args.repeats}")
-    print(f"{'case':<16}{'configuration':<15}{'instr/step':>12}{'us/step':>10}")
+    width = max(map(len, CASES)) + 2
+    print(f"{'case':<{width}}{'configuration':<15}{'instr/step':>12}{'us/step':>10}")
     for (name, side), v in ir.items():
-        print(f"{name:<16}{side:<15}{v:>12.0f}{us[(name, side)]:>10.3f}")
+        print(f"{name:<{width}}{side:<15}{v:>12.0f}{us[(name, side)]:>10.3f}")
     for name in dict.fromkeys(n for n, _ in configs):
         ratio = ir[(name, "with")] / ir[(name, "bare")]
         wall = us[(name, "with")] / us[(name, "bare")]
