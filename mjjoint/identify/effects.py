@@ -328,11 +328,13 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            lambda m, v: _set_transmission(m, damping=v["transmission_damping.d"]),
            requires=("linear_stiffness",), site="gear", evidence=("resonance",), plot="loops",
            term="transmission", read=term_values("transmission", {"transmission_damping.d": "damping"})),
+    # While the teeth are apart the link moves under its bearing and gravity alone: a fit whose gear
+    # never opens bends those to the play's absence, and a screen holding them misses the play.
     Effect("backlash", "play in the gear: dead zone of the deflection (Fig. 3 (a))",
            (Param("backlash.width", 1e-4, 1e-7, 1e-2, unit="rad"),),
            lambda m, v: _set_transmission(m, backlash=v["backlash.width"]),
            requires=("linear_stiffness",), site="gear", evidence=("small_delta", "reversal"), plot="loops",
-           variants=_play_variants, term="transmission",
+           variants=_play_variants, term="transmission", stand_ins=("load_friction", "gravity"),
            read=term_values("transmission", {"backlash.width": "backlash"})),
     Effect("torque_ripple", "position-periodic motor torque (cogging / eccentricity)",
            (Param("torque_ripple.a", 0.0, -2.0, 2.0, log=False, unit="N m", dim="force"),
