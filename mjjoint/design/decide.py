@@ -14,9 +14,10 @@ over the held-out windows (the residuals in floor units are the Gaussian's: half
 of the rivals' sums of squares; what the design's criterion predicts), the relative cost
 difference and
 a one-sided Wilcoxon signed-rank test of the per-window differences (are the loser's held-out
-windows consistently worse, not just a few). Differences, not the log ratios the diagnosis ranks:
-in floor units each window's difference is its share of the log-likelihood ratio. The decision is only called ``decisive`` when the
-test holds at ``max_p``; otherwise the winner is the better fit, no more.
+windows consistently worse, not just a few). Differences, not the log ratios the diagnosis
+ranks: in floor units each window's difference is its share of the log-likelihood ratio. The
+decision is only called ``decisive`` when the test holds at ``max_p``; otherwise the winner is
+the better fit, no more.
 """
 from __future__ import annotations
 
