@@ -35,6 +35,12 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 _ROOT_LOG_KEY = pytest.StashKey[tuple[int, int] | None]()
 
 
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Files marked ``long`` run first: a worker takes a whole file (``--dist loadfile``), and a
+    long file started late runs on alone after the others are done."""
+    items.sort(key=lambda item: item.get_closest_marker("long") is None)
+
+
 @pytest.fixture(autouse=True, scope="session")
 def mujoco_log_file(tmp_path_factory) -> Path:
     """Where MuJoCo writes its log during the tests (a temporary file)."""

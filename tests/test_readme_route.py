@@ -3,9 +3,9 @@ full joint) with a 0.3 mrad backlash, a 10 s multisine, ``mjjoint diagnose --bas
 
 The verdict must be a calibrated claim: never "nothing missing" and never "explained" while the
 final model misses far above the recording's noise floor; every signal predicted to NRMSE 0.3 with
-no parameter on a bound; the backlash named. About 19 minutes on 2 cores, so not in CI. The same
-route with the gear's hysteresis or its hardening spring as the gear effect, the multisine driving
-the gear to its rated deflection (10 to 20 minutes each).
+no parameter on a bound; the backlash named. About 6 minutes on 2 cores, in CI: it is the first
+thing a new user runs. The same route with the gear's hysteresis or its hardening spring as the
+gear effect, the multisine driving the gear to its rated deflection, is slow (5 to 10 minutes each).
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from mjjoint.coupling.kernels import hysteresis_history
 from mjjoint.coupling.layout import pack
 from mjjoint.modelfile import load_model_file
 
-pytestmark = pytest.mark.slow
+pytestmark = pytest.mark.long
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "default.toml"
 # An effect is visible on a route where at least this share of the gear's torque along the
 # recorded deflection is what no linear spring explains (``unexplained_share``).
@@ -123,14 +123,17 @@ def gear_route(request, tmp_path_factory) -> tuple[str, dict, float]:
     return request.param, *_route(tmp_path_factory.mktemp(request.param), GEAR_ROUTES[request.param], RATED)
 
 
+@pytest.mark.slow
 def test_each_gear_effect_is_visible_on_its_route(gear_route):
     assert gear_route[2] > VISIBLE, (gear_route[0], gear_route[2])
 
 
+@pytest.mark.slow
 def test_each_gear_route_verdict_is_calibrated(gear_route):
     _calibrated(gear_route[1])
 
 
+@pytest.mark.slow
 def test_each_gear_effect_is_named_on_the_flexible_arm(gear_route):
     effect, found, _ = gear_route
     assert effect in found["missing"], found["verdict"]

@@ -18,9 +18,26 @@ from ..joint import GROUND, stable_timestep
 STABILITY_SAMPLES = 16  # random link configurations (besides home) at which M is evaluated
 
 
+# What the mass matrix M(q) depends on: a fit compiles thousands of models that differ only in
+# the joint physics, and their inertias are computed once.
+_MASS_FIELDS = ("body_parentid", "body_pos", "body_quat", "body_ipos", "body_iquat", "body_mass", "body_inertia",
+                "jnt_type", "jnt_bodyid", "jnt_pos", "jnt_axis", "dof_armature", "qpos0")
+_INERTIAS: dict[bytes, np.ndarray] = {}
+
+
 def apparent_inertias(model: mujoco.MjModel, links: list[str], samples: int = STABILITY_SAMPLES,
                       seed: int = 0) -> np.ndarray:
     """Per dof, the smallest inertia a force on it meets with every other dof free, 1 / (M^-1)_dd."""
+    key = b"".join(np.ascontiguousarray(getattr(model, f)).tobytes() for f in _MASS_FIELDS)
+    key += repr((links, samples, seed)).encode()
+    if key not in _INERTIAS:
+        if len(_INERTIAS) > 256:
+            _INERTIAS.clear()
+        _INERTIAS[key] = _apparent_inertias(model, links, samples, seed)
+    return _INERTIAS[key].copy()
+
+
+def _apparent_inertias(model: mujoco.MjModel, links: list[str], samples: int, seed: int) -> np.ndarray:
     data = mujoco.MjData(model)
     rng = np.random.default_rng(seed)
     adr = [model.joint(name).qposadr[0] for name in links]

@@ -62,6 +62,11 @@ ROLLOUT_BUFFER = 64 * 2 ** 20
 # The internal states' histories along the recording kept for reuse (``Predictor._history``):
 # a 10-minute recording's 2SEP history is 24 MB, its Bouc-Wen history 5 MB.
 HISTORY_BYTES = 32 * 2 ** 20
+# A rollout call of at most this many steps in all runs on the calling thread: handing its rows to
+# the thread pool costs more than they take (a flexible lead-in's sample, ~10 rows of 2 steps of
+# the shipped arm: 63 us on the calling thread, 97 us on 2 threads; 10 rows of 20 steps: 559 us
+# and 352 us).
+SERIAL_STEPS = 100
 # 2SEP's window-start states are run along the measured motor angle, with the angle's retraces
 # smaller than its measurement noise taken for none: a play operator of half-width
 # REVERSAL_BAND x the noise std (``Measured.q_path``). A resting motor's quantised encoder
@@ -528,12 +533,15 @@ class Predictor:
         nrow, nx, nsens = len(models), x0.shape[1], models[0].nsensordata
         nstep = ctrl.shape[1] if nstep is None else nstep
         chunk = min(nrow, max(len(datas), ROLLOUT_BUFFER // (8 * nstep * (nx + nsens))))
+        pooled = nrow * nstep > SERIAL_STEPS
         state, sens = np.empty((chunk, nstep, nx)), np.empty((chunk, nstep, nsens))
         for a in range(0, nrow, chunk):
             b = min(a + chunk, nrow)
-            with mujoco_log_silenced():
-                mj_rollout.rollout(models[a:b], datas, x0[a:b], rows(a, b), control_spec=self.control_spec,
-                                   state=state[:b - a], sensordata=sens[:b - a], persistent_pool=True)
+            with mujoco_log_silenced():  # shapes are right by construction: unchecked, as a sample's call is short
+                mj_rollout.rollout(models[a:b], datas if pooled else datas[:1], np.ascontiguousarray(x0[a:b]),
+                                   np.ascontiguousarray(rows(a, b)), control_spec=self.control_spec,
+                                   state=state[:b - a], sensordata=sens[:b - a], nstep=nstep, skip_checks=True,
+                                   persistent_pool=pooled)
             yield a, b, state[:b - a]
             release_freed(state.nbytes + sens.nbytes)  # the chunk's arrays, consumed (sized as its buffers)
 
@@ -738,12 +746,15 @@ class Predictor:
         ends = np.cumsum([len(job.at) for job in jobs])
         x = np.concatenate([job.x for job in jobs])
         parts = np.split(x, ends[:-1])  # views: each job's rows of x
+        # every sample's controls at once, (lead, rows, steps, nu): one call, not one per sample
+        ctrl = np.concatenate([self._controls(job.model, (job.at[None, :] + np.arange(lead)[:, None]).ravel(), 2,
+                                              job.delay, job.ji).reshape(lead, len(job.at), -1, job.model.nu)
+                               for job in jobs], axis=1)
         for k in range(lead):  # one sample at a time, the encoders' joints put back on the record
             for part, job, cols in zip(parts, jobs, seen):
                 for col, meas in cols:
                     part[:, col] = meas[k]
-            ctrl = np.concatenate([self._controls(job.model, job.at + k, 2, job.delay, job.ji) for job in jobs])
-            for a, b, state in self._rollouts(models, x, ctrl):
+            for a, b, state in self._rollouts(models, x, ctrl[k]):
                 x[a:b] = state[:, -1]
         for part, job in zip(parts, jobs):
             job.x[:] = part
