@@ -16,8 +16,7 @@ import numpy as np
 import pytest
 
 from mjjoint.cli import main
-from mjjoint.coupling.kernels import hysteresis_history
-from mjjoint.coupling.layout import pack
+from mjjoint.diagnosis.gear_law import gear_torque
 from mjjoint.modelfile import load_model_file
 
 pytestmark = pytest.mark.long
@@ -51,12 +50,11 @@ def unexplained_share(model: Path, rec: Path) -> float:
     of that torque, along the deflection recorded in ``rec`` (no damping: what a gear effect adds
     to a linear gear)."""
     joint = load_model_file(model).joint
-    tr = joint.transmission
     data = np.genfromtxt(rec, delimiter=",", names=True)
-    delta = data["q"] / tr.gear_ratio - data["theta"]
+    delta = data["q"] / joint.transmission.gear_ratio - data["theta"]
     # the plugin's own Bouc-Wen state along the path, driven past the play as in the plant
-    x = hysteresis_history(pack(joint, 0, 0, 1, 1), delta, 0.0) if tr.hysteresis is not None else 0 * delta
-    torque = np.array([tr.torque(d, 0.0, xi) for d, xi in zip(delta, x)])
+    n = len(delta)
+    torque = gear_torque(joint, delta, np.zeros(n), np.arange(n), [(0, n)])
     k = delta @ torque / (delta @ delta)
     return float(np.sqrt(np.mean((torque - k * delta) ** 2) / np.mean(torque ** 2)))
 
