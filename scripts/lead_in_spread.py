@@ -58,7 +58,7 @@ def main() -> None:
         first = shifted[0]
         train = np.zeros(len(first.starts), bool)
         train[first.train] = True
-        resting = first.lead_samples > 0
+        resting = first.resting & (first.lead_samples > 0)
         undetermined = resting & (costs.max(axis=0) > args.spread * np.maximum(costs.min(axis=0), 1e-300))
         c = costs[0]
         print(f"seed {seed}: B {case.truth.values['dynamic_friction.b']:.2f}, k {case.truth.values['dynamic_friction.k']:.0f}; "
