@@ -726,9 +726,7 @@ class Predictor:
         lead = int(round(FLEX_LEAD * self.m.rate))
         if lead == 0 or _hidden_coordinates(model, ji) is None:
             return np.zeros(0, int)
-        bounds = np.array([0, *self.m.joins])
-        first = bounds[np.searchsorted(bounds, i0, side="right") - 1]
-        return np.flatnonzero(i0 - lead >= first)
+        return np.flatnonzero(i0 - lead >= _segment_first(i0, self.m.joins))
 
     def _flexible_start(self, jobs: list["_FlexLead"]) -> None:
         """Runs each job's states ``x`` at samples ``at`` over FLEX_LEAD (in place) and takes its
@@ -803,9 +801,15 @@ class Predictor:
         if factor != 1.0:
             far = lead_samples(m.qd, factor * m.moving_speed, self.starts, m.joins, cap)
             resting = np.where(resting > 0, np.maximum(resting, far), 0)
+        return np.where(self.resting, resting, self._transient_lead)
+
+    @cached_property
+    def _transient_lead(self) -> np.ndarray:
+        """The lead-ins of the windows that start in a transient (TRANSIENT), whatever the factor."""
+        m = self.m
+        cap = int(round(self.design.lead * m.rate))
         within = int(round(self.design.warmup * m.rate))
-        transient = transient_lead(m.qd, TRANSIENT * m.moving_speed, self.starts, m.joins, cap, within)
-        return np.where(self.resting, resting, transient)
+        return transient_lead(m.qd, TRANSIENT * m.moving_speed, self.starts, m.joins, cap, within)
 
     def with_lead(self, factor: float) -> "Predictor":
         """This predictor (the same windows, scratch data and rollout count) with the resting
@@ -864,8 +868,7 @@ class Predictor:
         knots, cum = self._held_input
         tk = m.t[i0][:, None] + h * np.arange((n - 1) * sub)[None, :] - delay - 0.5 * h
         # A delayed window at a join would otherwise take the previous recording's input.
-        first = np.array([a for a, _ in m.segments])
-        begin = m.t[first[np.searchsorted(first, i0, side="right") - 1]][:, None]
+        begin = m.t[_segment_first(i0, m.joins)][:, None]
         u = (np.interp(np.maximum(tk + h, begin), knots, cum) - np.interp(np.maximum(tk, begin), knots, cum)) / h
         ctrl = np.zeros((len(i0), (n - 1) * sub, model.nu))
         ctrl[:, :, ji.actuator] = u / ji.k_m
@@ -975,6 +978,17 @@ class _FlexLead:
     rows: np.ndarray
 
 
+def _segment_first(samples: np.ndarray, joins) -> np.ndarray:
+    """The first sample of the stacked recording each of ``samples`` lies in (joins: the others' firsts)."""
+    bounds = np.array([0, *joins])
+    return bounds[np.searchsorted(bounds, samples, side="right") - 1]
+
+
+def _last_index(mask: np.ndarray) -> np.ndarray:
+    """Per sample, the last sample at or before it where ``mask`` holds; -1 where none does."""
+    return np.maximum.accumulate(np.where(mask, np.arange(len(mask)), -1))
+
+
 def lead_samples(qd: np.ndarray, moving_speed: float, starts: np.ndarray, joins, cap: int) -> np.ndarray:
     """Samples from the last one where |qd| exceeded ``moving_speed`` to each start, at most
     ``cap`` and not across a join; 0 for a start where the motor moves (or ``cap`` is 0)."""
@@ -982,10 +996,8 @@ def lead_samples(qd: np.ndarray, moving_speed: float, starts: np.ndarray, joins,
     if cap <= 0:
         return np.zeros(len(starts), int)
     moving = np.abs(qd) > moving_speed
-    last = np.maximum.accumulate(np.where(moving, np.arange(len(moving)), -1))
-    bounds = np.array([0, *joins])
-    floor = bounds[np.searchsorted(bounds, starts, side="right") - 1]  # the join each start follows
-    floor = np.maximum(floor, starts - cap)
+    last = _last_index(moving)
+    floor = np.maximum(_segment_first(starts, joins), starts - cap)
     prev = np.where(starts > 0, last[np.maximum(starts - 1, 0)], -1)
     return np.where(moving[starts], 0, starts - np.maximum(prev, floor))
 
@@ -995,12 +1007,8 @@ def transient_lead(qd: np.ndarray, speed: float, starts: np.ndarray, joins, cap:
     |qd| was at most ``speed``: back to the last sample faster than ``speed`` before that one, at
     most ``cap`` and not across a join; 0 for every other start."""
     starts = np.asarray(starts)
-    idx = np.arange(len(qd))
-    slow = np.abs(qd) <= speed
-    last = np.maximum.accumulate(np.where(slow, idx, -1))[starts]
-    bounds = np.array([0, *joins])
-    floor = bounds[np.searchsorted(bounds, starts, side="right") - 1]
-    near = (last >= floor) & (starts - last <= within)
+    last = _last_index(np.abs(qd) <= speed)[starts]
+    near = (last >= _segment_first(starts, joins)) & (starts - last <= within)
     back = lead_samples(qd, speed, np.where(near, last, starts), joins, cap)
     return np.where(near & (back > 0), np.minimum(starts - last + back, cap), 0)
 
