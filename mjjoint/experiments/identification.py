@@ -24,7 +24,7 @@ from scipy.optimize import least_squares
 
 from ..physics.boucwen import BoucWen
 from ..physics.transmission import Transmission
-from ..sim import Trace
+from ..sim import Trace, held_controls
 from . import plotting
 from .restoring_loops import restoring_response
 
@@ -50,7 +50,10 @@ def fit_motor(tr: Trace) -> MotorFit:
     rate = 1.0 / (tr.t[1] - tr.t[0])
     accel = np.gradient(tr.qd, 1.0 / rate)
     regressors = np.column_stack([accel, np.sign(tr.qd), tr.qd])
-    (j, fc, sigma), *_ = np.linalg.lstsq(regressors, tr.u - tr.tau / tr.gear_ratio, rcond=None)
+    # The centred acceleration at a sample answers to the input held about it: the mean of the
+    # sample's and the one before (``sim.held_controls``); the sample's own is half a sample late.
+    drive = held_controls(tr.u, 1, tr.u[0]) - tr.tau / tr.gear_ratio
+    (j, fc, sigma), *_ = np.linalg.lstsq(regressors, drive, rcond=None)
     return MotorFit(float(j), float(fc), float(sigma))
 
 
