@@ -1,7 +1,8 @@
 """Coverage of the fits' 95 % intervals, per concealed effect, over simulated recordings.
 
 For each effect and seed: the concealed case's truth (``benchmark.cases``) records the lab
-programme in closed loop; the TRUE structure is fitted to it from the catalogue's initial values;
+programme in closed loop; the TRUE structure is fitted to it from the catalogue's initial values,
+as ``mjjoint fit`` fits (``--restarts``, its default: staged, restarted where it ends on a bound);
 each parameter's 95 % interval is checked against the truth. A parameter counts as identifiable
 in a fit when the fit does not call it poorly identifiable or on a bound (``FitResult.warnings``),
 and the fit explains the recording to its noise floor (``diagnosis.floor``): a fit stuck in a
@@ -24,6 +25,7 @@ import numpy as np
 
 from mjjoint.benchmark.cases import CONCEALED, GEAR_RATIO, make_case
 from mjjoint.benchmark.score import write_case_recording
+from mjjoint.cli.fit import RESTARTS
 from mjjoint.diagnosis.floor import noise_floor
 from mjjoint.identify.effects import EFFECTS
 from mjjoint.identify.fit import check_intervals, fit
@@ -49,6 +51,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=6)
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--fit-iter", type=int, default=30)
+    ap.add_argument("--restarts", type=int, default=RESTARTS, help=f"as mjjoint fit's (default {RESTARTS})")
     ap.add_argument("--effects", default=",".join(EFFECTS_SCORED))
     ap.add_argument("--check", choices=("own", "all", "none"), default="own",
                     help="whose intervals are checked against the model (fit.check_intervals): the concealed "
@@ -70,7 +73,7 @@ def main(argv=None) -> int:
                 rec = read_recording(write_case_recording(case, Path(tmp), args.duration), gear_ratio=GEAR_RATIO)
             predictor = Predictor(Measured.from_recording(rec, GEAR_RATIO), WindowDesign(seed=seed))
             start = Structure.create(case.truth.effects, case.truth.nominal, GEAR_RATIO, settings=case.truth.settings)
-            result = fit(predictor, start, max_iter=args.fit_iter)
+            result = fit(predictor, start, max_iter=args.fit_iter, restarts=args.restarts)
             fitted = result.rollouts
             if args.check != "none":
                 result = check_intervals(predictor, result, own if args.check == "own" else list(result.intervals))

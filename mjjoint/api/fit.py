@@ -22,7 +22,8 @@ def fit(recording: Recording | MultiRecording | str | Path, *, max_iter: int = 2
             a ``MultiRecording`` of several joints, or the path of a .csv/.npz/.mat recording.
         max_iter: Levenberg-Marquardt iterations of each phase, at least 1.
         restarts: further starting points tried when the fit ends on a bound or far above the
-            noise floor (the recording's initial values, then seeded random ones), at least 0.
+            noise floor (the recording's initial values, then seeded random ones), at least 0;
+            above 0 the fit is also run staged (``identify.fit.fit``), the better kept.
         progress: called as ``progress(iteration, cost)`` after each LM iteration.
         **inputs: the fields of ``mjjoint.problem.Inputs``: ``gear_ratio`` (required unless
             ``model`` gives it; a tuple gives one per joint), ``base`` (effect names, ``()`` for

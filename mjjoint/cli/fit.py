@@ -47,7 +47,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--max-iter", type=int, default=25, metavar="K", help="Levenberg-Marquardt iterations (default 25)")
     p.add_argument("--restarts", type=int, default=RESTARTS, metavar="K",
                    help="starting points tried when the fit ends on a bound or far above the noise floor: "
-                        f"the recording's initial values, then seeded random ones (default {RESTARTS}; 0: none)")
+                        f"the recording's initial values, then seeded random ones (default {RESTARTS}; 0: none, "
+                        "and no staged fit: the effects that refine another held while the rest are fitted)")
     p.set_defaults(handler=run)
 
 
