@@ -17,14 +17,13 @@ from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.recordings import read_recording
 
 
-def _start(effect: str, seed: int) -> tuple[Structure, Structure]:
-    """(the concealed case's true structure at the catalogue's initial values, its truth)."""
-    truth = make_case(effect, seed).truth
-    return Structure.create(truth.effects, truth.nominal, GEAR_RATIO, settings=truth.settings), truth
+def _start(truth: Structure) -> Structure:
+    """The true structure at the catalogue's initial values."""
+    return Structure.create(truth.effects, truth.nominal, GEAR_RATIO, settings=truth.settings)
 
 
 def test_the_refinements_are_the_parameters_of_effects_that_require_another():
-    start, _ = _start("dynamic_friction", 0)
+    start = _start(make_case("dynamic_friction", 0).truth)
     held = refinements(start)
     assert {"dynamic_friction.k", "dynamic_friction.b"} <= held
     for e in start.effects:
@@ -37,8 +36,8 @@ def test_a_2sep_fit_from_the_catalogue_values_finds_the_truth_staged():
     """Concealed dynamic_friction seed 0 (8 s): fitted at once from the catalogue's values the
     pre-sliding stiffness ends near 306 (truth 785) and delta misses at NRMSE 0.08 against a floor
     near 0.01; staged, the fit explains the recording and both 2SEP gains are within 10 %."""
-    start, truth = _start("dynamic_friction", 0)
     case = make_case("dynamic_friction", 0)
+    start, truth = _start(case.truth), case.truth
     with tempfile.TemporaryDirectory() as tmp:
         rec = read_recording(write_case_recording(case, Path(tmp), 8.0), gear_ratio=GEAR_RATIO)
     predictor = Predictor(Measured.from_recording(rec, GEAR_RATIO), WindowDesign(seed=0))

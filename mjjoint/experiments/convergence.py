@@ -139,9 +139,13 @@ STEPS = (1.0, 0.5, 0.25)  # the steps compared, in units of the shipped one
 
 def measure(case: Case, h: float = SHIPPED_STEP) -> Convergence:
     ref = case.plant(h / FINE, case.joint, case.u)
-    runs = [case.plant(k * h, case.joint, case.u) for k in STEPS]
+    return _against(ref, [case.plant(k * h, case.joint, case.u) for k in STEPS], case.torque)
+
+
+def _against(ref: Trace, runs: list[Trace], torque: str) -> Convergence:
+    """The ``runs`` (at ``STEPS``) against the finer step's ``ref``: motor speed and ``torque``."""
     return Convergence(tuple(rel_rms(r.qd, ref.qd) for r in runs),
-                       tuple(rel_rms(getattr(r, case.torque), getattr(ref, case.torque)) for r in runs))
+                       tuple(rel_rms(getattr(r, torque), getattr(ref, torque)) for r in runs))
 
 
 # The 3-joint arm's motors under this share of their current limit: up to 600 rad/s at the
@@ -161,8 +165,7 @@ def measure_arm3(h: float = SHIPPED_STEP, share: float = ARM3_SHARE) -> list[Con
     """``measure`` for each joint of ``arm3_chirps``."""
     ref = arm3_chirps(h / FINE, share)
     runs = [arm3_chirps(k * h, share) for k in STEPS]
-    return [Convergence(tuple(rel_rms(r[j].qd, ref[j].qd) for r in runs),
-                        tuple(rel_rms(r[j].tau, ref[j].tau) for r in runs)) for j in range(len(ref))]
+    return [_against(ref[j], [r[j] for r in runs], "tau") for j in range(len(ref))]
 
 
 def table() -> str:
