@@ -139,3 +139,13 @@ def test_every_case_draws_a_plant_and_the_reference_is_continuous():
     t = np.arange(0.0, 6.0, 1e-3)
     ref = Excitation(seed=3).reference(t)
     assert np.max(np.abs(np.diff(ref))) < 2e-3   # no jumps: a closed loop would kick the joint
+
+
+def test_every_right_or_tolerated_name_is_an_effect_the_tool_can_name():
+    """A scored name outside the tool's vocabulary could never count; a periodic structure of the
+    motor angle counts as its generic form too (the plant's cogging runs at a real period)."""
+    from mjjoint.identify.effects import EFFECTS
+    for name in CASES:
+        case = make_case(name, 0)
+        assert set(case.right) | set(case.tolerated) <= set(EFFECTS), name
+    assert "motor_periodic_q" in make_case("cogging", 0).right

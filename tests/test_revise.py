@@ -124,16 +124,46 @@ def test_an_effect_that_explains_less_than_a_refused_rival_at_its_site_is_a_stan
     guard's other tests to decide."""
     refused = Revision("stand-in", "dynamic_friction", 0.000855, 0.000425, "parameters on their bounds")
     before = SimpleNamespace(cost_test=0.000855)
-    bump = SimpleNamespace(cost_test=0.000570, on_bound=[])
-    guard = lambda after, refusals: stand_in(None, before, after, _step("stribeck_friction"),  # noqa: E731
+    bump = _bump(0.000570, vs=2.0)
+    guard = lambda after, refusals: stand_in(_RESOLVING, before, after, _step("stribeck_friction"),  # noqa: E731
                                              [_step("transmission_hysteresis")], DiagnoseOptions(), 1e-6,
                                              lambda line: None, refusals)
     refusal, freer = guard(bump, [refused])
     assert refusal.kind == "stand-in" and refusal.effect == "stribeck_friction" and freer is None
     assert "dynamic_friction" in refusal.reason and refusal.cost_after == bump.cost_test
-    assert guard(SimpleNamespace(cost_test=0.000400, on_bound=[]), [refused]) == (None, None)
+    assert guard(_bump(0.000400, vs=2.0), [refused]) == (None, None)
     elsewhere = Revision("stand-in", "backlash", 0.000855, 0.000425, "parameters on their bounds")
     assert guard(bump, [elsewhere]) == (None, None)
+
+
+# A recording that tells motion from rest from 0.2 rad/s on (``Measured.moving_speed``).
+_RESOLVING = SimpleNamespace(m=SimpleNamespace(moving_speed=0.2))
+
+
+def _bump(cost_test: float, vs: float) -> SimpleNamespace:
+    """A Stribeck screen's fit: held-out cost, Stribeck velocity [rad/s], nothing on a bound."""
+    return SimpleNamespace(cost_test=cost_test, on_bound=[], structure=SimpleNamespace(
+        values={"stribeck_friction.ratio": 2.5, "stribeck_friction.vs": vs}))
+
+
+def test_a_stribeck_velocity_below_what_the_recording_resolves_is_a_stand_in(monkeypatch):
+    """The out-of-regime maxwell_slip sequence (seed 0): 2SEP named, then a Stribeck bump passes
+    with fs 2.6 fc at vs 0.12 rad/s, where the recording's motion cannot be told from rest below
+    0.2 rad/s: a curve shaped by the breakaways alone, where the plant's four slip elements act.
+    It is refused, and the model without it refitted is offered in its place, first effect or
+    not; the same bump at a speed the recording resolves is left to the guard's other tests."""
+    from mjjoint.diagnosis import revise as rv
+    freer = SimpleNamespace(cost_test=0.000549)
+    monkeypatch.setattr(rv, "_refit_without", lambda *a: freer)
+    monkeypatch.setattr(rv, "_robust_kept", lambda predictor, result, options: result)
+    before = SimpleNamespace(cost_test=0.000549)
+    for named in ([_step("dynamic_friction")], []):
+        refusal, kept = stand_in(_RESOLVING, before, _bump(0.000476, vs=0.12), _step("stribeck_friction"), named,
+                                 DiagnoseOptions(), 1e-6, lambda line: None)
+        assert refusal.kind == "stand-in" and "stribeck_friction.vs = 0.12" in refusal.reason and kept is freer
+    assert rv.unresolved_speeds(_RESOLVING, _bump(0.000476, vs=0.5), "stribeck_friction") == ""
+    assert stand_in(_RESOLVING, before, _bump(0.000476, vs=0.5), _step("stribeck_friction"), [],
+                    DiagnoseOptions(), 1e-6, lambda line: None) == (None, None)
 
 
 @pytest.mark.slow

@@ -9,7 +9,9 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   against the model without it refitted with more freedom (every parameter free, ``fit_iter``
   iterations, then the robust loss, kept if it predicts the held-out windows better); an effect
   whose gain does not survive that, or whose own parameters end on their bounds, is a stand-in:
-  it is reported (``stand_in_effects``), not named, and not screened again; the model without it,
+  it is reported (``stand_in_effects``), not named, and not screened again; so is an effect, the
+  first too, whose characteristic speed (the Stribeck velocity) is fitted below the speed the
+  recording resolves (``unresolved_speeds``); the model without it,
   refitted from where its fit left the other parameters, replaces the current one where it
   predicts the held-out windows better (a term fitted to its bound is often fitted to none, its
   gain the model's own from another start). A generic form, the
@@ -133,7 +135,8 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
              options: DiagnoseOptions, floor_cost: float, say: Callable[[str], None], refusals=()
              ) -> tuple[Revision | None, FitResult | None]:
     """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): its
-    own parameters on their bounds, a related effect already refused as a stand-in (one of
+    own parameters on their bounds, a characteristic speed fitted below what the recording
+    resolves (``unresolved_speeds``; the first effect too), a related effect already refused as a stand-in (one of
     ``refusals``) predicting the held-out windows better than it does, or, when it is ``related``
     to an effect already ``named``, its gain gone against the model without it refitted with more
     freedom, from where ``after`` left the other parameters (the added term may only have carried
@@ -152,20 +155,23 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
                         f"explains less of the residual at its site than {better[0].effect}, refused as a stand-in, "
                         f"did (held-out cost {after.cost_test:.4g} with it, {better[0].cost_after:.4g} with "
                         f"{better[0].effect}): what acts there is neither"), None
-    if not named:
+    unresolved_speed = unresolved_speeds(predictor, after, step.effect)
+    if not (named or unresolved_speed):
         return None, None
     own = [p.name for p in EFFECTS[step.effect].params]
-    bound = [n for n in after.on_bound if n in own]
-    if bound:
+    bound = [n for n in after.on_bound if n in own] if named else []
+    if bound or unresolved_speed:
         # A term fitted to a bound is often fitted to none at all (a Stribeck ratio of 1, a delay
         # of 0): its gain is then the model's own, reached from another start, which the model
         # without it refitted from there keeps.
         free = _robust_kept(predictor, _refit_without(predictor, after, step, options), options)
         say(f"  the model without {step.effect} refitted from its values: held-out cost {free.cost_test:.4g} "
             f"(before it {before.cost_test:.4g}, with it {after.cost_test:.4g})")
+        why = (f"its parameters on their bounds ({', '.join(bound)})" if bound else
+               f"{unresolved_speed}, below the speed the recording resolves ({predictor.m.moving_speed:.3g}: "
+               "one noise band a sample), a law over speeds the recording cannot tell from rest")
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
-                        f"passed the acceptance rule with its parameters on their bounds ({', '.join(bound)}): "
-                        "a stand-in, not an estimate"), free
+                        f"passed the acceptance rule with {why}: a stand-in, not an estimate"), free
     earlier = [s.effect for s in named if related(s.effect, step.effect)]
     if not earlier:
         return None, None
@@ -181,6 +187,16 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     return Revision("stand-in", step.effect, ref.cost_test, after.cost_test,
                     f"re-explains what {', '.join(earlier)} and the rest explain: against the model without it "
                     f"refitted from its values it fails {', '.join(failed)}"), ref
+
+
+def unresolved_speeds(predictor: Predictor, result: FitResult, effect: str) -> str:
+    """``effect``'s characteristic speeds (``Param.dim`` "speed": the Stribeck velocity) that
+    ``result`` fitted below ``Measured.moving_speed``, as "name = value", or "" where none is. A
+    curve over speeds the recording cannot tell from rest is shaped by the breakaway transients
+    alone, where the pre-sliding physics acts: it stands in for that, whatever it gains."""
+    slow = [(p.name, result.structure.values[p.name]) for p in EFFECTS[effect].params
+            if p.dim == "speed" and result.structure.values[p.name] < predictor.m.moving_speed]
+    return ", ".join(f"{n} = {v:.3g}" for n, v in slow)
 
 
 def _refit_without(predictor: Predictor, after: FitResult, step: Step, options: DiagnoseOptions) -> FitResult:

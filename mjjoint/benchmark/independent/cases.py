@@ -97,7 +97,8 @@ def _prandtl_gear(r):
 def _cogging(r):
     p = _lab(r)
     return _with(p, cogging=Cogging(amplitude=r.uniform(0.02, 0.04), per_rad=r.uniform(2.3, 7.7),
-                                    phase=r.uniform(-math.pi, math.pi))), {"right": ("torque_ripple",)}
+                                    phase=r.uniform(-math.pi, math.pi))), \
+        {"right": ("torque_ripple", "motor_periodic_q")}  # the catalogue's ripple, or the generic form at a real period
 
 
 def _position_friction(r):
