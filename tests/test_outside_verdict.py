@@ -55,6 +55,42 @@ def test_an_unstable_screen_is_retried_at_the_step_its_stability_check_asks_for(
     assert share == 2 ** round(np.log2(share)) and 2 < share <= MAX_REFINE
 
 
+def test_a_screen_far_above_the_model_it_nests_is_fitted_again_at_finer_steps(monkeypatch):
+    """The out-of-regime flexible_rod seed 4: the rod's screen at the plant's 0.5 ms ends at a
+    held-out cost of 2.63 against the rigid base's 0.298, stable but unresolved; from the same
+    start it reaches 1.49, 0.73 and 0.093 at a half, a quarter and an eighth of the step. The
+    refinement follows the gain down, stops where a halving gains less than ``min_gain``, and a
+    candidate a finer step leaves that far above is not refined again."""
+    from types import SimpleNamespace
+
+    from mjjoint.assets.builder import ArmSpec
+    from mjjoint.diagnosis import loop
+    from mjjoint.identify.structure import Structure
+
+    h = 5e-4
+    rod = {h: 2.63, h / 2: 1.49, h / 4: 0.73, h / 8: 0.093, h / 16: 0.092}
+    monkeypatch.setattr(loop, "fit", lambda predictor, s, names, **kw: SimpleNamespace(
+        cost_test=costs[s.nominal.timestep], structure=s))
+    trial = Structure.create(("linear_stiffness", "link_flexibility"), ArmSpec(timestep=h), 120.0)
+    refine = lambda first, null, name, stepped: loop._refined(  # noqa: E731
+        None, trial, SimpleNamespace(cost_test=first, structure=trial), None, loop.DiagnoseOptions(), null, name,
+        lambda line: None, stepped)
+    costs, stepped = rod, set()
+    res, start = refine(2.63, 0.298, "link_flexibility", stepped)
+    assert res.cost_test == 0.093 and start.nominal.timestep == h / 8 and not stepped
+    # a rigid plant's rod (concealed backlash seed 0: 46x, 14x at half the step, worse finer)
+    costs = {h: 1.48, h / 2: 0.44, h / 4: 0.75}
+    res, start = refine(1.48, 0.032, "link_flexibility", stepped)
+    assert res.cost_test == 0.44 and start.nominal.timestep == h / 2 and stepped == {"link_flexibility"}
+    # a step that gains nothing: the screen stands as it was
+    costs = {h: 0.9, h / 2: 0.88}
+    res, start = refine(0.9, 0.298, "backlash", stepped)
+    assert res.cost_test == 0.9 and start is trial and "backlash" in stepped
+    # only a term MuJoCo integrates itself is refined: the plugin's converge at the plant's step
+    from mjjoint.identify.effects import EFFECTS
+    assert [e.name for e in EFFECTS.values() if not e.step_resolved] == ["link_flexibility"]
+
+
 def test_a_screen_the_model_refuses_is_reported_and_a_refined_step_goes_back_where_it_can():
     """At a refined step a catalogued start can lie past a limit tied to the step (the native
     delay's 24 steps): the screen is reported as refused, not raised. A named effect whose fit

@@ -72,7 +72,7 @@ def test_the_two_stage_screen_finds_the_candidate_finishing_every_screen_finds(p
     options = DiagnoseOptions(screen_iter=6)
 
     def screen():
-        return _screen(predictor, base, {}, options, lambda m: None, ScreenClock(1), {})
+        return _screen(predictor, base, {}, options, lambda m: None, ScreenClock(1), {}, set())
     _, two, rest = screen()
     assert rest and len(two) <= loop.CONTINUE_MAX
     monkeypatch.setattr(loop, "CONTINUE_MAX", 99)

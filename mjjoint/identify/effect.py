@@ -97,6 +97,10 @@ class Effect:
     # located residual; ``causes`` names the physics that produce the form.
     generic: bool = False
     causes: str = ""
+    # Whether the plant's step resolves the term at any of its values: the plugin integrates its
+    # terms converged at the shipped step (docs/design.md); a flexible rod's hinges are MuJoCo's
+    # own springs, stable long before their modes are resolved (diagnosis.loop._refined).
+    step_resolved: bool = True
 
     def __post_init__(self) -> None:
         if self.site not in SITES:

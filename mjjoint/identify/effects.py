@@ -348,7 +348,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
             Param("link_flexibility.beta", ROD_BETA, 1e-7, 1e-2, unit="s", lo_physical=True)),
            _flexibility, site="link",
            evidence=("resonance",), plot="spectrum", stand_ins=("linear_stiffness", "transmission_damping"),
-           variants=_flexibility_variants, read=_read_flexibility),
+           variants=_flexibility_variants, read=_read_flexibility, step_resolved=False),
     Effect("input_delay", "dead time between commanded and applied motor torque",
            (Param("input_delay.delay", 1e-3, 0.0, 0.01, log=False, unit="s"),),
            lambda m, v: _arm(m, input_delay=v["input_delay.delay"]),
