@@ -192,3 +192,35 @@ def test_revisions_are_reported_with_their_costs():
                      "input_offset removed (held-out cost 0.01 -> 0.011): given the effects named after it, it fails x",
                      "not named, a stand-in: transmission_hysteresis (re-explains what backlash explains)"]
     assert revision_lines({}) == []  # a diagnosis.json written before revisions existed
+
+
+def _without(kept: str, cost_test: float, values: dict) -> SimpleNamespace:
+    """A refit of a pair's model without one member: ``kept`` is the member left in it."""
+    return SimpleNamespace(cost_test=cost_test, nrmse_test={"tau": 0.05},
+                           structure=SimpleNamespace(effects=("coulomb_friction", kept), values=values))
+
+
+def test_a_pair_whose_members_each_re_explain_the_other_keeps_one(monkeypatch):
+    """The out-of-regime twosep sequence (seed 0): 2SEP and the Stribeck dip named together
+    (held-out cost -63 %), then each refused because the model without it, refitted, keeps the
+    gain: together they held one effect, not none. The member left in the better of the two
+    refits is kept, where that refit passes the acceptance rule against the model the pair
+    extends; if it fails, or only one member was refused, the guard's refusals stand."""
+    from mjjoint.diagnosis import revise as rv
+    verdict = {"failed": []}
+    monkeypatch.setattr(rv, "acceptance", lambda predictor, ref, cand, effect, options, floor, max_p:
+                        (1.0 - cand.cost_test / ref.cost_test, {"p": 0.0156}, verdict["failed"]))
+    before = SimpleNamespace(cost_test=0.0085)
+    dyn, bump = _step("dynamic_friction"), _step("stribeck_friction")
+    dyn.parameters, bump.parameters = {"dynamic_friction.k": 1.0}, {"stribeck_friction.vs": 1.0}
+    no_dyn = _without("stribeck_friction", 0.0040, {"stribeck_friction.vs": 0.6})
+    no_bump = _without("dynamic_friction", 0.0032, {"dynamic_friction.k": 4000.0})
+    refusals = [Revision("stand-in", e, 0.003, 0.0031, "re-explains") for e in ("dynamic_friction", "stribeck_friction")]
+    outcomes = [(dyn, refusals[0], no_dyn), (bump, refusals[1], no_bump)]
+    step, kept, refusal = rv.one_of_pair(None, before, outcomes, DiagnoseOptions(), 1e-6)
+    assert step.effect == "dynamic_friction" and kept is no_bump and refusal is refusals[1]
+    assert step.parameters == {"dynamic_friction.k": 4000.0} and step.gain == pytest.approx(1 - 0.0032 / 0.0085)
+    assert "kept alone" in step.screen
+    assert rv.one_of_pair(None, before, [(dyn, refusals[0], no_dyn), (bump, None, None)], DiagnoseOptions(), 1e-6) is None
+    verdict["failed"] = ["paired p = 0.3 > 0.05"]
+    assert rv.one_of_pair(None, before, outcomes, DiagnoseOptions(), 1e-6) is None

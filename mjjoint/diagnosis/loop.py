@@ -464,25 +464,33 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             for key, other in zip(keys, keys[::-1])]
         unresolved = {}  # screened against the model before this addition
         if options.revise:
-            from .revise import revise, stand_in  # revise builds on this module
-            refusals = []
+            from .revise import one_of_pair, revise, stand_in  # revise builds on this module
+            outcomes = []
             for step in added:
                 with phases("stand-in guard"):
                     refusal, freer = stand_in(predictor, current, refit, step, steps + [s for s in added if s is not step],
                                               options, floor_cost, say,
                                               [r for r in revisions if r.kind == "stand-in"])
+                outcomes.append((step, refusal, freer))
                 if refusal is not None:
-                    refusals.append(refusal)
                     say(f"  {step.effect} is not named: {refusal.reason}")
+            refusals = [r for _, r, _ in outcomes if r is not None]
+            alone = one_of_pair(predictor, current, outcomes, options, floor_cost) if len(refusals) == 2 else None
+            if alone is not None:
+                step, refit, refusal = alone
+                say(f"  each of the pair re-explains the other: {step.effect} kept alone (held-out cost "
+                    f"-{100 * step.gain:.1f} %, paired p = {step.consistency['p']:.3g})")
+                added, refusals = [step], [refusal]
             if refusals:
-                # A single step's freer refit is the same structure fitted further; a pair's is
-                # the model with the other member, not the one this round extends.
-                if len(added) == 1 and freer is not None and freer.cost_test < current.cost_test:
-                    current = history[-1] = freer
                 revisions += refusals
                 allowed = options.candidates or default_candidates(current.structure)
                 search = dataclasses.replace(options, candidates=tuple(e for e in allowed
                                                                        if e not in refused(revisions)))
+            if refusals and alone is None:
+                # A single step's freer refit is the same structure fitted further; a pair's is
+                # the model with the other member, not the one this round extends.
+                if len(added) == 1 and freer is not None and freer.cost_test < current.cost_test:
+                    current = history[-1] = freer
                 continue
         steps += added
         current = refit

@@ -189,6 +189,29 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
                     f"refitted from its values it fails {', '.join(failed)}"), ref
 
 
+def one_of_pair(predictor: Predictor, before: FitResult, outcomes, options: DiagnoseOptions, floor_cost: float
+                ) -> tuple[Step, FitResult, Revision] | None:
+    """A pair named together whose members are each refused (``stand_in``) as explaining what the
+    other does holds one effect, not none: the member kept by the better of the two refits without
+    the other, where that refit passes the acceptance rule against ``before``, the model the pair
+    extends. ``outcomes``: (step, refusal, refit without it) per member. Returns (that member's
+    step, its fit, the other's refusal) or None."""
+    kept = [(freer, keep, refusal) for (step, refusal, freer), (keep, _, _) in zip(outcomes, outcomes[::-1])
+            if refusal is not None and freer is not None and keep.effect in freer.structure.effects
+            and step.effect not in freer.structure.effects]
+    if len(kept) < 2:
+        return None
+    freer, keep, refusal = min(kept, key=lambda k: k[0].cost_test)
+    gain, consistency, failed = acceptance(predictor, before, freer, keep.effect, options, floor_cost, options.max_p)
+    if failed:
+        return None
+    values = freer.structure.values
+    step = dataclasses.replace(keep, parameters={n: values[n] for n in keep.parameters if n in values},
+                               fit_after=freer.nrmse_test, gain=gain, consistency=consistency,
+                               screen=f"{keep.screen}; kept alone, {refusal.effect} re-explaining it")
+    return step, freer, refusal
+
+
 def unresolved_speeds(predictor: Predictor, result: FitResult, effect: str) -> str:
     """``effect``'s characteristic speeds (``Param.dim`` "speed": the Stribeck velocity) that
     ``result`` fitted below ``Measured.moving_speed``, as "name = value", or "" where none is. A

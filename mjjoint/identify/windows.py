@@ -321,23 +321,36 @@ def window_starts(total: int, n: int, u: np.ndarray, half: int, max_shift: int,
     window shares no cost sample with its predecessor; the step falls late in its warmup or in
     its cost; and the windows still cover the recording without a gap. A start that no shift
     clears stays where it is. At ``joins`` the tiling starts afresh, and no window crosses one.
+    A log's first window starts at its first sample, whose velocity stencil is one-sided, unless
+    the input jumps inside that stencil: then where the whole centred stencil is clear of jumps,
+    at most ``max_shift`` in (the later windows keep their grid: the first ends inside the
+    second's warmup). A one-sided stencil fits one polynomial through whatever the loop did
+    first; through a controller's first kicks it gave a resting motor 1.6 rad/s, which rang
+    through the window.
     """
     lo, hi = np.percentile(u, [1.0, 99.0])
     kink = np.abs(np.diff(u, 2)) > JUMP_SHARE * max(hi - lo, np.finfo(float).tiny)
     # kink[i]: u's slope turns at sample i + 1, a kink of q between samples i + 1 and i + 2.
     at = np.concatenate([[0], np.cumsum(kink)])
 
-    def clear(s: int) -> bool:  # no kink strictly inside the stencil s - half .. s + half
-        a, b = (min(max(k, 0), len(kink)) for k in (s - half - 1, s + half - 1))
+    def clear(s: int, first: int = 0) -> bool:  # no kink strictly inside the stencil s - half .. s + half
+        a, b = (min(max(k, first), len(kink)) for k in (s - half - 1, s + half - 1))  # none before the log
         return at[b] == at[a]
 
     starts = []
     for first, end in zip((0, *joins), (*joins, total - 1)):
-        s = first
+        s, last_end = first, first
         while s + n <= end:
-            if s > first and not clear(s):
-                s -= next((d for d in range(min(max_shift, s - first), 0, -1) if clear(s - d)), 0)
-            starts.append(s)
+            if s == first:  # at the log's start, unless the input jumps inside its one-sided stencil
+                start = first if clear(first + half, first) else first + next(
+                    (d for d in range(half + 1, max_shift + 1) if clear(first + d, first)), min(half, max_shift))
+            else:  # back off a jump by what the warmup holds beyond the last window's end
+                room = max_shift - max(last_end - s, 0)
+                start = s = s - (0 if clear(s) else next((d for d in range(room, 0, -1) if clear(s - d)), 0))
+            if start + n > end:
+                break
+            starts.append(start)
+            last_end = start + n
             s += n
     return np.array(starts, dtype=int)
 

@@ -4,10 +4,10 @@ Nothing in mjjoint's core imports this package, and it imports nothing of mjjoin
 its recordings test the diagnosis against physics it was not written with (docs/benchmark.md,
 "Out-of-regime set").
 """
-from .friction import LuGre, MaxwellSlip, PositionDependence
+from .friction import LuGre, MaxwellSlip, PositionDependence, TwoSEP
 from .gear import BoucWenLaw, StopHysteresis
 from .plant import Cogging, JointPlant, Rod, simulate
 from .record import Excitation, Sensors, record, write_csv
 
 __all__ = ["BoucWenLaw", "Cogging", "Excitation", "JointPlant", "LuGre", "MaxwellSlip", "StopHysteresis",
-           "PositionDependence", "Rod", "Sensors", "record", "simulate", "write_csv"]
+           "PositionDependence", "Rod", "Sensors", "TwoSEP", "record", "simulate", "write_csv"]

@@ -16,7 +16,7 @@ from typing import Callable
 
 import numpy as np
 
-from .friction import LuGre, MaxwellSlip, PositionDependence
+from .friction import LuGre, MaxwellSlip, PositionDependence, TwoSEP
 from .gear import BoucWenLaw, StopHysteresis
 from .plant import Cogging, JointPlant, Rod
 from .record import Excitation, Sensors
@@ -118,6 +118,22 @@ def _maxwell(r):
         {"right": ("dynamic_friction",), "tolerated": ()}
 
 
+def _twosep(r):
+    """The seed's 2SEP friction read from the chapter alone (``friction.TwoSEP``), a Stribeck dip
+    and lag gains beyond the development set's (K 500-2000, B 20-100)."""
+    fc = r.uniform(0.03, 0.06)
+    f = TwoSEP(fc=fc, fs=fc * r.uniform(1.3, 1.8), vs=r.uniform(0.3, 1.0), sigma2=r.uniform(1e-4, 4e-4),
+               k=r.uniform(2000, 5000), b=r.uniform(100, 300))
+    return _lab(r, friction=f), {"right": ("dynamic_friction", "stribeck_friction"), "tolerated": ()}
+
+
+def _seed_joint(r):
+    """The chapter's joint: 2SEP friction on the motor and a Bouc-Wen gear, both written here."""
+    p, truth = _twosep(r)
+    return _with(p, hysteresis=BoucWenLaw(mu=r.uniform(0.6, 0.8), beta=1 / r.uniform(4e-3, 8e-3))), \
+        {**truth, "right": (*truth["right"], "transmission_hysteresis")}
+
+
 def _current_loop(r):
     return _lab(r, current_lag=r.uniform(2e-3, 5e-3)), {"right": ("input_delay",)}
 
@@ -189,6 +205,10 @@ CASES: dict[str, tuple[str, Callable]] = {
     "backlash+lag": ("backlash and a current-loop lag", _backlash_and_lag),
     "posfriction+hysteresis": ("position-dependent friction and a Bouc-Wen gear", _position_friction_and_hysteresis),
     "gear_efficiency": ("friction level raised by 20-40 % of the motor-side gear torque", _gear_efficiency),
+    # appended: a case's draws are seeded by its place in this table
+    "twosep": ("2SEP friction read from the chapter alone (z2 restarted at reversals), K 2000-5000, B 100-300",
+               _twosep),
+    "seed_joint": ("the chapter's joint: that 2SEP and a Bouc-Wen gear", _seed_joint),
 }
 CONTROLS = ("control", "coarse_encoder")
 

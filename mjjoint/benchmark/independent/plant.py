@@ -21,10 +21,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .friction import LuGre, MaxwellSlip, PositionDependence
+from .friction import LuGre, MaxwellSlip, PositionDependence, TwoSEP
 from .gear import BoucWenLaw, StopHysteresis, dead_zone
 
 MAX_RATE_STEP = 0.5  # h times the bristle's relaxation rate (accuracy, well inside RK4's 2.78)
+TWOSEP_SLOTS = 5
 
 
 @dataclass(frozen=True)
@@ -56,7 +57,7 @@ class JointPlant:
     load_coulomb: float = 0.0
     load_viscous: float = 0.0
     load_veps: float = 2e-3             # [rad/s] sign regularisation of the load's Coulomb friction
-    friction: LuGre | MaxwellSlip | None = None
+    friction: LuGre | MaxwellSlip | TwoSEP | None = None
     # LuGre's Coulomb level raised by this share of the motor-side gear torque |T| / N (tooth
     # and bearing friction pressed by the load: an efficiency below one)
     load_dependence: float = 0.0
@@ -68,17 +69,20 @@ class JointPlant:
     rod: Rod | None = None
 
     # State layout: q, q', theta, theta', phi, phi', z (LuGre), x (Bouc-Wen), u_e, then the
-    # Maxwell elements, then the hysteretic gear's sliders.
+    # friction law's own slots (the Maxwell elements; 2SEP's z1, z2, q_r and its memory of the
+    # last reversal, Omega and the direction), then the hysteretic gear's sliders.
     @property
-    def n_maxwell(self) -> int:
-        return len(self.friction.stiffness) if isinstance(self.friction, MaxwellSlip) else 0
+    def n_friction(self) -> int:
+        if isinstance(self.friction, MaxwellSlip):
+            return len(self.friction.stiffness)
+        return TWOSEP_SLOTS if isinstance(self.friction, TwoSEP) else 0
 
     @property
     def n_sliders(self) -> int:
         return len(self.hysteresis.radii) if isinstance(self.hysteresis, StopHysteresis) else 0
 
     def initial_state(self, u0: float = 0.0) -> np.ndarray:
-        s = np.zeros(9 + self.n_maxwell + self.n_sliders)
+        s = np.zeros(9 + self.n_friction + self.n_sliders)
         s[8] = u0
         return s
 
@@ -98,7 +102,7 @@ class JointPlant:
         if isinstance(h, BoucWenLaw):
             return getattr(h, what)(self.stiffness, de, s[7])
         if isinstance(h, StopHysteresis):
-            return getattr(h, what)(de, s[9 + self.n_maxwell:])
+            return getattr(h, what)(de, s[9 + self.n_friction:])
         return self.stiffness * de if what == "torque" else 0.5 * self.stiffness * de ** 2
 
     def motor_friction(self, s: np.ndarray, t_gear: float) -> tuple[float, float, np.ndarray | None]:
@@ -113,8 +117,11 @@ class JointPlant:
             dz, torque = f.rates(v, s[6], level, self.motor_inertia)
             return torque, dz, None
         if isinstance(f, MaxwellSlip):
-            z = s[9:9 + self.n_maxwell]
+            z = s[9:9 + self.n_friction]
             return scale * f.spring(z) + f.sigma2 * v, 0.0, f.rates(v, z)
+        if isinstance(f, TwoSEP):
+            z1, z2, qr, omega = s[9:13]
+            return f.force(v, z1, z2), 0.0, np.array([*f.rates(v, z1, z2, qr, omega), 0.0, 0.0])
         return 0.0, 0.0, None
 
     def derivative(self, s: np.ndarray, u: float) -> np.ndarray:
@@ -140,24 +147,33 @@ class JointPlant:
         if self.current_lag > 0:
             d[8] = (u - s[8]) / self.current_lag
         if dmax is not None:
-            d[9:9 + self.n_maxwell] = dmax
+            d[9:9 + self.n_friction] = dmax
         if self.n_sliders:
-            d[9 + self.n_maxwell:] = self.hysteresis.rates(dde, de, s[9 + self.n_maxwell:])
+            d[9 + self.n_friction:] = self.hysteresis.rates(dde, de, s[9 + self.n_friction:])
         return d
 
     def project(self, s: np.ndarray) -> np.ndarray:
-        """Keep the rate-independent elements on their admissible sets after a step."""
-        if self.n_maxwell:
-            s[9:9 + self.n_maxwell] = self.friction.clip(s[9:9 + self.n_maxwell])
+        """Keep the rate-independent elements on their admissible sets after a step; 2SEP
+        memorises Omega and restarts q_r and z2 where the motor's direction changed
+        (``friction.TwoSEP``)."""
+        if isinstance(self.friction, MaxwellSlip):
+            s[9:9 + self.n_friction] = self.friction.clip(s[9:9 + self.n_friction])
+        if isinstance(self.friction, TwoSEP) and s[1] != 0.0 and math.copysign(1.0, s[1]) != s[13]:
+            s[12] = self.friction.reversal_memory(s[1], s[9], s[10])
+            s[10:12] = 0.0
+            s[13] = math.copysign(1.0, s[1])
         if self.n_sliders:
             de = dead_zone(s[0] / self.gear_ratio - s[2], self.backlash)
-            s[9 + self.n_maxwell:] = self.hysteresis.clip(de, s[9 + self.n_maxwell:])
+            s[9 + self.n_friction:] = self.hysteresis.clip(de, s[9 + self.n_friction:])
         return s
 
     def fast_rate(self, s: np.ndarray) -> float:
-        """The LuGre bristle's relaxation rate s0 |v| / g at state s [1/s] (0 without LuGre): the
-        stiffest eigenvalue at speed, which sets the RK4 step (``simulate``)."""
+        """The friction state's fastest rate at state s [1/s] (LuGre's bristle relaxation
+        s0 |v| / g; 2SEP's, ``TwoSEP.fast_rate``; 0 for the others), which sets the RK4 step
+        (``simulate``)."""
         f = self.friction
+        if isinstance(f, TwoSEP):  # its lag term B |w| z2 is a damper B |z2| on the rotor too
+            return max(f.fast_rate(s[1], s[11]), f.b * abs(s[10]) / self.motor_inertia)
         if not isinstance(f, LuGre):
             return 0.0
         return abs(s[1]) / f.z0 * f.fc / min(f.fc, f.fs)
@@ -181,7 +197,7 @@ class JointPlant:
             e += 0.5 * r.tip_inertia * s[5] ** 2 + 0.5 * r.stiffness * (s[2] - s[4]) ** 2
             e += r.tip_gravity * (1 - math.cos(s[4]))
         if isinstance(self.friction, MaxwellSlip):
-            z = s[9:9 + self.n_maxwell]
+            z = s[9:9 + self.n_friction]
             e += 0.5 * float(np.dot(self.friction.stiffness, z * z))
         return e
 
