@@ -1,6 +1,6 @@
 """``mjjoint diagnose`` on a fleet of recordings: rows, failure isolation, reruns, engines.
 
-Tiny recordings (3 s of an elastic gear with a 3 ms input delay, simulated here) diagnosed
+Tiny recordings (2 s of an elastic gear with a 3 ms input delay, simulated here) diagnosed
 with one round and two candidates take seconds each. Beside the good one, a fleet holds a
 recording too short to name an effect (it fails inside the diagnosis) and a file that is no
 recording (it fails when read); both must give failed rows while the good one is reported.
@@ -51,7 +51,7 @@ def fleet(tmp_path_factory):
     d = tmp_path_factory.mktemp("fleet")
     recs = d / "recs"
     recs.mkdir()
-    simulate_csv(recs / "delayed.csv", 3.0)  # 7 held-out windows of 0.1 s: enough to decide
+    simulate_csv(recs / "delayed.csv", 2.0)
     simulate_csv(recs / "short.csv", 1.0)  # 2 held-out windows: too few to name an effect
     (recs / "notes.csv").write_text("t,u,q,theta\n")  # a header without data
     (recs / "README.txt").write_text("not a recording: ignored")
@@ -207,7 +207,7 @@ def test_a_manifest_row_replaces_the_command_line_options(fleet, tmp_path, monke
     problems = {t.name: load_problem(t.arguments["recording"], inputs_from_args(argparse.Namespace(**t.arguments)), NAMES)
                 for t in seen}
     assert problems["renamed"].base.gear_ratio == GEAR and problems["delayed"].base.gear_ratio == 100.0
-    assert problems["renamed"].predictor.m.t[-1] == pytest.approx(3.0, abs=2e-3)
+    assert problems["renamed"].predictor.m.t[-1] == pytest.approx(2.0, abs=2e-3)
 
 
 @pytest.mark.parametrize("files, error", [
