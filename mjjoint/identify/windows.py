@@ -323,8 +323,8 @@ def window_starts(total: int, n: int, u: np.ndarray, half: int, max_shift: int,
     clears stays where it is. At ``joins`` the tiling starts afresh, and no window crosses one.
     A log's first window starts at its first sample, whose velocity stencil is one-sided, unless
     the input jumps inside that stencil: then where the whole centred stencil is clear of jumps,
-    at most ``max_shift`` in (the later windows keep their grid: the first ends inside the
-    second's warmup). A one-sided stencil fits one polynomial through whatever the loop did
+    at most ``max_shift`` in, if such a start exists (the later windows keep their grid: the
+    first ends inside the second's warmup). A one-sided stencil fits one polynomial through whatever the loop did
     first; through a controller's first kicks it gave a resting motor 1.6 rad/s, which rang
     through the window.
     """
@@ -343,7 +343,7 @@ def window_starts(total: int, n: int, u: np.ndarray, half: int, max_shift: int,
         while s + n <= end:
             if s == first:  # at the log's start, unless the input jumps inside its one-sided stencil
                 start = first if clear(first + half, first) else first + next(
-                    (d for d in range(half + 1, max_shift + 1) if clear(first + d, first)), min(half, max_shift))
+                    (d for d in range(half + 1, max_shift + 1) if clear(first + d, first)), 0)
             else:  # back off a jump by what the warmup holds beyond the last window's end
                 room = max_shift - max(last_end - s, 0)
                 start = s = s - (0 if clear(s) else next((d for d in range(room, 0, -1) if clear(s - d)), 0))
