@@ -475,7 +475,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 if refusal is not None:
                     say(f"  {step.effect} is not named: {refusal.reason}")
             refusals = [r for _, r, _ in outcomes if r is not None]
-            alone = one_of_pair(predictor, current, outcomes, options, floor_cost) if len(refusals) == 2 else None
+            alone = one_of_pair(predictor, current, outcomes, options, floor_cost)
             if alone is not None:
                 step, refit, refusal = alone
                 say(f"  each of the pair re-explains the other: {step.effect} kept alone (held-out cost "

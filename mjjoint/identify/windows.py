@@ -333,8 +333,8 @@ def window_starts(total: int, n: int, u: np.ndarray, half: int, max_shift: int,
     # kink[i]: u's slope turns at sample i + 1, a kink of q between samples i + 1 and i + 2.
     at = np.concatenate([[0], np.cumsum(kink)])
 
-    def clear(s: int, first: int = 0) -> bool:  # no kink strictly inside the stencil s - half .. s + half
-        a, b = (min(max(k, first), len(kink)) for k in (s - half - 1, s + half - 1))  # none before the log
+    def clear(s: int, since: int = 0) -> bool:  # no kink strictly inside the stencil s - half .. s + half
+        a, b = (min(max(k, since), len(kink)) for k in (s - half - 1, s + half - 1))  # none before the log
         return at[b] == at[a]
 
     starts = []
