@@ -10,6 +10,7 @@ true sensors' floor.
 
     python scripts/outside_benchmark.py                       # every case, seed 0, 6 s
     python scripts/outside_benchmark.py --cases control cogging --seeds 0 1
+    python scripts/outside_benchmark.py --no-torque           # the same joints, no torque sensor
 """
 from __future__ import annotations
 
@@ -28,13 +29,16 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", nargs="+", type=int, default=[0])
     ap.add_argument("--duration", type=float, default=6.0, help="recording length [s] (default 6)")
     ap.add_argument("--out", type=Path, default=Path("out/outside"))
+    ap.add_argument("--no-torque", action="store_true",
+                    help="leave the torque column out of the recordings (a joint with no torque sensor)")
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args(argv)
     rows = []
     for seed in args.seeds:
         for name in args.cases:
             say = None if args.quiet else (lambda m, c=name: print(f"[{c}] {m}", flush=True))
-            s = run_case(name, seed, args.out / f"{name}-{seed}", args.duration, progress=say)
+            s = run_case(name, seed, args.out / f"{name}-{seed}", args.duration, progress=say,
+                         torque=not args.no_torque)
             rows.append(s)
             print(f"[{name}] named={s.named} explained={s.explained} {s.worst} NRMSE {s.nrmse_before:.3f}->"
                   f"{s.nrmse_after:.3f} (true floor {s.true_floor:.3f}) {'PASS' if s.passed else 'FAIL'}\n"

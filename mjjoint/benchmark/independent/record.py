@@ -89,9 +89,10 @@ def record(plant: JointPlant, excitation: Excitation, sensors: Sensors, seed: in
 
 
 def write_csv(path: Path, cols: dict[str, np.ndarray]) -> Path:
-    """The recording as plain CSV (header t,u,q,theta,tau), independent of mjjoint's writer."""
+    """The recording as plain CSV (header t,u,q,theta[,tau]: the columns ``cols`` holds),
+    independent of mjjoint's writer."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    names = ["t", "u", "q", "theta", "tau"]
+    names = [k for k in ("t", "u", "q", "theta", "tau") if k in cols]
     np.savetxt(path, np.column_stack([cols[k] for k in names]), delimiter=",", header=",".join(names),
                comments="", fmt="%.10g")
     return path

@@ -75,12 +75,15 @@ def score_diagnosis(case: OutsideCase, diag, seconds: float) -> OutsideScore:
                         float(floor["nrmse"][worst]))
 
 
-def run_case(name: str, seed: int, folder: Path, duration: float = 6.0, progress=None, options=None) -> OutsideScore:
-    """Record the case, write its CSV, diagnose the CSV as a user would (``options``: a
-    ``DiagnoseOptions``, default the command line's), and score it."""
+def run_case(name: str, seed: int, folder: Path, duration: float = 6.0, progress=None, options=None,
+             torque: bool = True) -> OutsideScore:
+    """Record the case, write its CSV (without the torque column where ``torque`` is false: a
+    joint with no torque sensor, as most robots are), diagnose the CSV as a user would
+    (``options``: a ``DiagnoseOptions``, default the command line's), and score it."""
     from ... import diagnose  # the public API, as ``mjjoint diagnose`` runs it
     case = make_case(name, seed, duration)
-    path = write_csv(folder / "recording.csv", record(case.plant, case.excitation, case.sensors, seed))
+    cols = record(case.plant, case.excitation, case.sensors, seed)
+    path = write_csv(folder / "recording.csv", {k: v for k, v in cols.items() if torque or k != "tau"})
     start = time.perf_counter()
     diag = diagnose(path, gear_ratio=case.plant.gear_ratio, base=list(case.base), progress=progress, options=options)
     return score_diagnosis(case, diag, time.perf_counter() - start)
