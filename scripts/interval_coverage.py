@@ -52,6 +52,9 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--fit-iter", type=int, default=30)
     ap.add_argument("--restarts", type=int, default=RESTARTS, help=f"as mjjoint fit's (default {RESTARTS})")
+    ap.add_argument("--truth-step", type=float, default=None,
+                    help="the truth's timestep [s] (default the fitted model's, 0.5 ms); a finer one records "
+                         "physics nearer its converged solution, which no model's step matches exactly")
     ap.add_argument("--effects", default=",".join(EFFECTS_SCORED))
     ap.add_argument("--check", choices=("own", "all", "none"), default="own",
                     help="whose intervals are checked against the model (fit.check_intervals): the concealed "
@@ -70,7 +73,8 @@ def main(argv=None) -> int:
         for seed in range(args.seeds):
             case = make_case(effect, seed)
             with tempfile.TemporaryDirectory() as tmp:
-                rec = read_recording(write_case_recording(case, Path(tmp), args.duration), gear_ratio=GEAR_RATIO)
+                rec = read_recording(write_case_recording(case, Path(tmp), args.duration, args.truth_step),
+                                     gear_ratio=GEAR_RATIO)
             predictor = Predictor(Measured.from_recording(rec, GEAR_RATIO), WindowDesign(seed=seed))
             start = Structure.create(case.truth.effects, case.truth.nominal, GEAR_RATIO, settings=case.truth.settings)
             result = fit(predictor, start, max_iter=args.fit_iter, restarts=args.restarts)

@@ -1,6 +1,7 @@
 """Run one concealed case blind and score the result against the hidden truth."""
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,9 +54,13 @@ class Score:
                 and err is not None and err <= 0.2)
 
 
-def write_case_recording(case: Case, folder: Path, duration: float) -> Path:
-    """Simulate the truth in closed loop and write ONLY the recording CSV the tool will see."""
+def write_case_recording(case: Case, folder: Path, duration: float, timestep: float | None = None) -> Path:
+    """Simulate the truth in closed loop and write ONLY the recording CSV the tool will see;
+    ``timestep``: the truth's step [s] where not its model's own (a finer one stands for physics
+    that has none)."""
     arm, joint = case.truth.model_params()
+    if timestep is not None:
+        arm = dataclasses.replace(arm, timestep=timestep)
     cols = record(arm, joint, LabProgram(duration=duration, seed=case.seed))
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "recording.csv"
