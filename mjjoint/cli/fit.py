@@ -52,9 +52,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=run)
 
 
-def run(args: argparse.Namespace) -> int:
+def fitted(problem: Problem, args: argparse.Namespace, progress):
+    """(the fit of ``problem``'s starting model, its noise floor): every interval widened by its
+    estimate's step bias (``identify.fit.step_bias``; the profile check is the diagnosis's, for
+    the effects it names, a few rollouts an end)."""
     from ..diagnosis.floor import judged
-    from ..identify.fit import fit
+    from ..identify.fit import check_intervals, fit
+    result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress, restarts=args.restarts)
+    result = check_intervals(problem.predictor, result, [], biased=list(result.intervals))
+    result, floor, _ = judged(problem.predictor, result)
+    return result, floor
+
+
+def run(args: argparse.Namespace) -> int:
     from ..report.progress import FitProgress
 
     if args.max_iter < 1:
@@ -67,9 +77,7 @@ def run(args: argparse.Namespace) -> int:
         return fit_joints(args, out, problem)
     start = time.perf_counter()
     with FitProgress(args.max_iter) as progress:
-        result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress,
-                     restarts=args.restarts)
-    result, floor, _ = judged(problem.predictor, result)
+        result, floor = fitted(problem, args, progress)
     seconds = time.perf_counter() - start
 
     from ..report.build import write_fit

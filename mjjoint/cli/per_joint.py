@@ -29,21 +29,18 @@ LOADED = ("the other joints' inertia, Coriolis and gravity forces on each joint 
 
 def fit_joints(args: argparse.Namespace, out, jp: JointProblems) -> int:
     """``mjjoint fit`` on each selected joint; DIR/joint{j}/ plus a top-level fit.json and index."""
-    from ..diagnosis.floor import judged
-    from ..identify.fit import fit
     from ..report.build import write_fit
     from ..report.joints import write_joints_index
     from ..report.output import write_json
     from ..report.progress import FitProgress
     from ..report.summary import judged_lines, parameter_table
+    from .fit import fitted
 
     results, floors = {}, {}
     for j, problem in jp.problems.items():
         start = time.perf_counter()
         with FitProgress(args.max_iter, desc=f"fit joint {j}") as progress:
-            result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress,
-                         restarts=args.restarts)
-        result, floors[j], _ = judged(problem.predictor, result)
+            result, floors[j] = fitted(problem, args, progress)
         results[j] = (result, time.perf_counter() - start)
     with out.staged() as folder:
         data = _write_each(folder, "fit", args, jp, results,

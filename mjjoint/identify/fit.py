@@ -13,7 +13,9 @@ again (``Predictor.predict(assume_stable=True)``). 95 % intervals come from the 
 the optimum, with the windows as the independent units (``intervals``: a window's residuals
 share its start-state error); a parameter whose interval is wider than its value, or that sits
 on a bound, is flagged. ``check_intervals`` then tests chosen intervals against the cost itself
-(``intervals.profile_intervals``): moved where it is not quadratic over them, or flagged.
+(``intervals.profile_intervals``): moved where it is not quadratic over them, or flagged, and
+widened by the step's bias where the model's discretisation moves the estimate more than the
+noise does (``step_bias``).
 
 Robust cost over windows (``robust=True``; the diagnosis's refits and final estimate, docs/diagnosis.md):
 the fitted objective is sum_i s log(1 + c_i / s) over the windows' mean squared residuals c_i
@@ -478,7 +480,7 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
                      rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start,
                      coarse_iterations=coarse_done, robust=st.robust,
                      on_bound=best.stand_in_bounds(names, x),
-                     at_optimum=_AtOptimum(optimum, names, windows, obj_scale))
+                     at_optimum=_AtOptimum(optimum, names, windows, obj_scale, jac))
 
 
 @dataclass(frozen=True)
@@ -490,25 +492,87 @@ class _AtOptimum:
     names: list[str]
     windows: np.ndarray
     scale: float | None
+    jac: np.ndarray = field(repr=False, compare=False)  # of the residual in the optimiser's coordinates
 
 
-def check_intervals(predictor: Predictor, result: FitResult, names) -> FitResult:
+def check_intervals(predictor: Predictor, result: FitResult, names, biased=None) -> FitResult:
     """The fit with the intervals of ``names`` checked against the model itself
     (``intervals.profile_intervals``): each end moved to where the windowed cost, the other
     parameters following their first-order re-fit, rises as much as the interval assumes, or
-    the parameter flagged where the cost is not quadratic over it. A few rollouts of the fit's
-    windows per end (PROFILE_EVALS at most), counted in ``rollouts``."""
+    the parameter flagged where the cost is not quadratic over it; then those of ``biased``
+    (default ``names``) widened by the step's bias (``step_bias``). A few rollouts of the fit's
+    windows per end (PROFILE_EVALS at most) and three for the bias, counted in ``rollouts``."""
     at = result.at_optimum
-    if at is None or not names:
+    biased = names if biased is None else biased
+    if at is None or not (names or biased):
         return result
     roll0, start = predictor.rollouts, time.perf_counter()
     residual = residual_matrix(lambda structs, w: predictor.predictions(structs, w), result.structure, at.names,
                                at.windows, predictor, None, at.scale)
     spans, warnings, _ = profile_intervals(lambda xs: np.sum(residual(xs) ** 2, axis=0), at.optimum, at.names,
                                            result.structure, names, result.intervals, result.warnings)
+    shift = step_bias(predictor, result.structure, at, residual) if biased else None
+    if shift is not None:
+        spans, warnings = widened(result.structure, at, biased, shift, spans, warnings)
     return dataclasses.replace(result, intervals=spans, warnings=warnings, at_optimum=None,  # checked once
                                rollouts=result.rollouts + predictor.rollouts - roll0,
                                seconds=result.seconds + time.perf_counter() - start)
+
+
+# The fitted model's step error converges at first order (docs/design.md, "Integration"): the
+# estimate's distance to physics without a step is about this multiple of its move from the
+# model's step to half of it.
+STEP_BIAS_FACTOR = 2.0
+# Singular values of the Jacobian below this share of the largest span directions the fit does
+# not determine (``intervals.EIG_FLOOR`` on J'J): the bias has no component along them.
+STEP_RCOND = 1e-7
+# What a widened interval's warning says: the interval is calibrated, the estimate step-biased.
+STEP_BIASED = "the model's step biases it more than the noise scatters it"
+
+
+def step_bias(predictor: Predictor, structure: Structure, at: "_AtOptimum", residual) -> np.ndarray | None:
+    """The estimate's discretisation bias in the optimiser's coordinates, or None where the
+    model at half the step is not stable: the Gauss-Newton move of the optimum when the model's
+    step is halved, the data kept (-(J'J)^+ J' (r_h/2 - r_h) at the fit's windows and loss),
+    times STEP_BIAS_FACTOR. A recording of physics has no step; the model's own error at its
+    step is sub-noise in every signal and still moves well-determined parameters by more than
+    their noise intervals (a Bouc-Wen gear's elastic share recorded at half the step: 0.2-0.4 %
+    off against intervals of 0.1-0.2 %)."""
+    fine = structure.at_timestep(structure.nominal.timestep / 2.0)
+    if not predictor.stable(fine):
+        return None
+    x = at.optimum.x
+    coarse = residual(x)[:, 0]
+    halved = residual_matrix(lambda structs, w: predictor.predictions(structs, w), fine, at.names, at.windows,
+                             predictor, None, at.scale)(x)[:, 0]
+    move = np.linalg.lstsq(at.jac, coarse - halved, rcond=STEP_RCOND)[0]
+    return STEP_BIAS_FACTOR * move
+
+
+def widened(structure: Structure, at: "_AtOptimum", names, shift: np.ndarray, spans: dict, warnings: list
+            ) -> tuple[dict, list]:
+    """``spans`` of ``names`` widened by their estimates' discretisation bias ``shift``
+    (``step_bias``): each interval joined with itself moved by the shift, so the end on the
+    shift's side moves by it; a warning says so where the shift exceeds the interval's half-width
+    on that side."""
+    params = {p.name: p for p in structure.params}
+    spans, warnings = dict(spans), list(warnings)
+    for name in names:
+        if name not in at.names or name not in spans:
+            continue
+        j, p = at.names.index(name), params[name]
+        x, d = at.optimum.x[j], float(shift[j])
+        low, high = spans[name]
+        end = high if d > 0 else low
+        if not (np.isfinite(d) and d != 0.0 and np.isfinite(end) and (end > 0 or not p.log)):
+            continue
+        moved = p.from_unit(p.to_unit(end) + d)
+        spans[name] = (low, moved) if d > 0 else (moved, high)
+        if abs(d) > abs(p.to_unit(end) - x):
+            warnings.append(f"{name} = {p.from_unit(x):.4g}: {STEP_BIASED} (without a step about "
+                            f"{p.from_unit(x + d):.4g}: its move at half the step, linearised, doubled); its 95 % "
+                            "interval is widened to hold that")
+    return spans, warnings
 
 
 def _reporter(progress, done: int):
