@@ -59,7 +59,8 @@ def main(argv=None) -> int:
     ap.add_argument("--check", choices=("own", "all", "none"), default="own",
                     help="whose intervals are checked against the model (fit.check_intervals): the concealed "
                          "effect's parameters (as the diagnosis checks the effects it names), every "
-                         "parameter's, or none (the linearised intervals)")
+                         "parameter's, or none (the linearised intervals); but with none, every interval is "
+                         "widened by its step bias, as the diagnosis and mjjoint fit widen them")
     args = ap.parse_args(argv)
     unknown = [e for e in args.effects.split(",") if e not in CONCEALED or e == "none"]
     if unknown:
@@ -80,7 +81,8 @@ def main(argv=None) -> int:
             result = fit(predictor, start, max_iter=args.fit_iter, restarts=args.restarts)
             fitted = result.rollouts
             if args.check != "none":
-                result = check_intervals(predictor, result, own if args.check == "own" else list(result.intervals))
+                result = check_intervals(predictor, result, own if args.check == "own" else list(result.intervals),
+                                         biased=list(result.intervals))
             explained = noise_floor(predictor, result.structure).explained(result.nrmse_test)
             for name, c in covered(result, case.truth, explained).items():
                 rows.setdefault(name, []).append(c)

@@ -519,10 +519,11 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 history[-1] = current
             else:
                 history.append(current)
-    named = [name for s in steps for name in s.parameters]
-    if named:  # the named effects' intervals, checked against the model (identify.fit.check_intervals)
-        with phases("interval check"):
-            current = check_intervals(predictor, current, named)
+    # The named effects' intervals checked against the model, every interval widened by its
+    # estimate's step bias (identify.fit.check_intervals).
+    with phases("interval check"):
+        current = check_intervals(predictor, current, [name for s in steps for name in s.parameters],
+                                  biased=list(current.intervals))
     with phases("locate"):
         # The last round's model, unchanged since (nothing added, the final robust estimate not
         # kept): its residual is located already.
