@@ -4,7 +4,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from ..identify.fit import FitResult
+from ..identify.fit import FitResult, reported
 from ..identify.fit import fit as fit_structure
 from ..recordings import MultiRecording, Recording
 from .problem import answer, joint_problems
@@ -35,7 +35,8 @@ def fit(recording: Recording | MultiRecording | str | Path, *, max_iter: int = 2
             ``columns``, ``scales``, ``allow_gaps`` (as ``read_recording`` takes them).
 
     Returns:
-        The ``FitResult`` (fitted ``structure``, 95 % ``intervals`` by parameter name,
+        The ``FitResult`` (fitted ``structure``, 95 % ``intervals`` by parameter name, each
+        widened by its estimate's step bias (``identify.fit.reported``),
         ``warnings``, held-out ``nrmse_test`` by signal, budget); for a multi-joint recording,
         a dict of them by joint number.
 
@@ -48,5 +49,6 @@ def fit(recording: Recording | MultiRecording | str | Path, *, max_iter: int = 2
         raise ValueError(f"max_iter={max_iter!r} must be an integer of at least 1")
     if isinstance(restarts, bool) or not isinstance(restarts, int) or restarts < 0:
         raise ValueError(f"restarts={restarts!r} must be an integer of at least 0")
-    return answer({j: fit_structure(p.predictor, p.base, max_iter=max_iter, progress=progress, restarts=restarts)
+    return answer({j: reported(p.predictor, fit_structure(p.predictor, p.base, max_iter=max_iter, progress=progress,
+                                                          restarts=restarts))
                    for j, p in joint_problems(recording, inputs).items()})

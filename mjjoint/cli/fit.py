@@ -53,14 +53,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def fitted(problem: Problem, args: argparse.Namespace, progress):
-    """(the fit of ``problem``'s starting model, its noise floor): every interval widened by its
-    estimate's step bias (``identify.fit.step_bias``; the profile check is the diagnosis's, for
-    the effects it names, a few rollouts an end)."""
+    """(the fit of ``problem``'s starting model as reported, ``identify.fit.reported``, its noise
+    floor)."""
     from ..diagnosis.floor import judged
-    from ..identify.fit import check_intervals, fit
+    from ..identify.fit import fit, reported
     result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress, restarts=args.restarts)
-    result = check_intervals(problem.predictor, result, [], biased=list(result.intervals))
-    result, floor, _ = judged(problem.predictor, result)
+    result, floor, _ = judged(problem.predictor, reported(problem.predictor, result))
     return result, floor
 
 

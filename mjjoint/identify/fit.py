@@ -519,6 +519,13 @@ def check_intervals(predictor: Predictor, result: FitResult, names, biased=None)
                                seconds=result.seconds + time.perf_counter() - start)
 
 
+def reported(predictor: Predictor, result: FitResult) -> FitResult:
+    """``result`` as ``mjjoint fit`` and ``mjjoint.fit`` report it: every interval widened by its
+    estimate's step bias (``step_bias``; the profile check is the diagnosis's, for the effects it
+    names, a few rollouts an end)."""
+    return check_intervals(predictor, result, [], biased=list(result.intervals))
+
+
 # The fitted model's step error converges at first order (docs/design.md, "Integration"): the
 # estimate's distance to physics without a step is about this multiple of its move from the
 # model's step to half of it.
