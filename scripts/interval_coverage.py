@@ -59,7 +59,7 @@ def main(argv=None) -> int:
     ap.add_argument("--check", choices=("own", "all", "none"), default="own",
                     help="whose intervals are checked against the model (fit.check_intervals): the concealed "
                          "effect's parameters (as the diagnosis checks the effects it names), every "
-                         "parameter's, or none (the linearised intervals); but with none, every interval is "
+                         "parameter's, or none (the linearised intervals); with own or all, every interval is also "
                          "widened by its step bias, as the diagnosis and mjjoint fit widen them")
     args = ap.parse_args(argv)
     unknown = [e for e in args.effects.split(",") if e not in CONCEALED or e == "none"]

@@ -930,20 +930,28 @@ def acceptance(predictor: Predictor, ref: FitResult, cand: FitResult, effect: st
     bic_ok = _bic_lower(predictor, ref, cand)
     consistency = _consistency(predictor, effect, ref.structure, cand.structure)
     min_abs = options.floor_share * floor_cost
-    material = ref.cost_test - cand.cost_test >= min_abs
+    small, immaterial = gain_shortfalls(ref.cost_test, cand.cost_test, options, floor_cost)
     inconsistent = consistency["p"] > max_p
     law = law_ratio(predictor, ref.structure, cand.structure, EFFECTS[effect].site)
     if law is not None:
         consistency["gear_law_ratio"] = law
     failed = [test for test, fails in (
         (f"paired p = {consistency['p']:.3f} > {max_p:g}", inconsistent),
-        (f"gain {100 * gain:.1f} % < {100 * options.min_gain:.0f} %", gain < options.min_gain),
+        (f"gain {100 * gain:.1f} % < {100 * options.min_gain:.0f} %", small),
         (f"absolute gain {ref.cost_test - cand.cost_test:.2g} < {min_abs:.2g} ({options.floor_share:g} of the "
-         f"noise floor's cost)", not material),
+         f"noise floor's cost)", immaterial),
         ("BIC higher", not bic_ok),
         (f"the recorded gear torque is fitted {law:.2f}x worse from the recorded deflection (a stand-in for "
          "physics elsewhere)" if law is not None else "", law is not None and law >= 1.0)) if fails]
     return gain, consistency, failed
+
+
+def gain_shortfalls(ref_cost: float, cand_cost: float, options: DiagnoseOptions, floor_cost: float
+                    ) -> tuple[bool, bool]:
+    """(the held-out gain from ``ref_cost`` to ``cand_cost`` is below ``min_gain`` relative, below
+    ``floor_share`` of the noise floor's cost absolute): the acceptance rule's two gain tests."""
+    return (1.0 - cand_cost / ref_cost < options.min_gain,
+            ref_cost - cand_cost < options.floor_share * floor_cost)
 
 
 def _choose(screened: dict[str, tuple[float, FitResult]], cost_now: float) -> tuple[str, list[str]]:

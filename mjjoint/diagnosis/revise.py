@@ -50,7 +50,7 @@ from ..identify.intervals import Z95
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust_kept, acceptance, bundle,
-                   parts, screened_params, with_candidate)
+                   gain_shortfalls, parts, screened_params, with_candidate)
 
 
 @dataclass
@@ -140,9 +140,10 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
              ) -> tuple[Revision | None, FitResult | None]:
     """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): its
     term switched off at its own fit losing less than the acceptance rule's relative or absolute
-    gain (``switched_off``; the first effect too), its own parameters on their bounds, a characteristic speed fitted below what the recording
-    resolves (``unresolved_speeds``; the first effect too), a related effect already refused as a stand-in (one of
-    ``refusals``) predicting the held-out windows better than it does, or, when it is ``related``
+    gain (``switched_off``, ``loop.gain_shortfalls``; the first effect too), its own parameters on
+    their bounds, a characteristic speed fitted below what the recording resolves
+    (``unresolved_speeds``; the first effect too), a related effect already refused as a stand-in
+    (one of ``refusals``) predicting the held-out windows better than it does, or, when it is ``related``
     to an effect already ``named``, its gain gone against the model without it refitted with more
     freedom, from where ``after`` left the other parameters (the added term may only have carried
     them to a better optimum). Returns (the refusal or None, that refit of the model without it
@@ -156,7 +157,7 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
                         "located residual holds"), None
     off = switched_off(predictor, after, step)
     carried = off - after.cost_test
-    if carried < options.min_gain * off or carried < options.floor_share * floor_cost:
+    if any(gain_shortfalls(off, after.cost_test, options, floor_cost)):
         # The gain is where the new term's fit carried the other parameters, not the term: the
         # model without it, refitted from there, keeps that gain without naming it.
         free = _robust_kept(predictor, _refit_without(predictor, after, step, options), options)

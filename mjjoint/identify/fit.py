@@ -507,8 +507,7 @@ def check_intervals(predictor: Predictor, result: FitResult, names, biased=None)
     if at is None or not (names or biased):
         return result
     roll0, start = predictor.rollouts, time.perf_counter()
-    residual = residual_matrix(lambda structs, w: predictor.predictions(structs, w), result.structure, at.names,
-                               at.windows, predictor, None, at.scale)
+    residual = _at_fit(predictor, result.structure, at)
     spans, warnings, _ = profile_intervals(lambda xs: np.sum(residual(xs) ** 2, axis=0), at.optimum, at.names,
                                            result.structure, names, result.intervals, result.warnings)
     shift = step_bias(predictor, result.structure, at, residual) if biased else None
@@ -517,6 +516,12 @@ def check_intervals(predictor: Predictor, result: FitResult, names, biased=None)
     return dataclasses.replace(result, intervals=spans, warnings=warnings, at_optimum=None,  # checked once
                                rollouts=result.rollouts + predictor.rollouts - roll0,
                                seconds=result.seconds + time.perf_counter() - start)
+
+
+def _at_fit(predictor: Predictor, structure: Structure, at: "_AtOptimum"):
+    """The residual function of ``structure`` over the fit's windows and under its loss (``at``)."""
+    return residual_matrix(lambda structs, w: predictor.predictions(structs, w), structure, at.names, at.windows,
+                           predictor, None, at.scale)
 
 
 def reported(predictor: Predictor, result: FitResult) -> FitResult:
@@ -550,8 +555,7 @@ def step_bias(predictor: Predictor, structure: Structure, at: "_AtOptimum", resi
         return None
     x = at.optimum.x
     coarse = residual(x)[:, 0]
-    halved = residual_matrix(lambda structs, w: predictor.predictions(structs, w), fine, at.names, at.windows,
-                             predictor, None, at.scale)(x)[:, 0]
+    halved = _at_fit(predictor, fine, at)(x)[:, 0]
     move = np.linalg.lstsq(at.jac, coarse - halved, rcond=STEP_RCOND)[0]
     return STEP_BIAS_FACTOR * move
 
