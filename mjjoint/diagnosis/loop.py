@@ -100,7 +100,7 @@ import numpy as np
 from scipy.stats import wilcoxon
 
 from ..assets.stability import check_model_stability, stable_timesteps
-from ..identify.effects import EFFECTS, GENERIC, SENSOR_EFFECTS, base_params, incompatible, plant_effects
+from ..identify.effects import EFFECTS, GENERIC, ON_REQUEST, base_params, incompatible, plant_effects
 from ..identify.fit import FitResult, check_intervals, finish, fit, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
@@ -310,9 +310,9 @@ def screened_params(key: str, structure: Structure) -> list[str]:
 
 
 def default_candidates(structure: Structure) -> tuple[str, ...]:
-    """The effects screened unless the options name them: every one the plant can have but the
-    sensors' and the generic forms."""
-    return tuple(e for e in plant_effects(structure.nominal) if e not in SENSOR_EFFECTS and e not in GENERIC)
+    """The effects screened unless the options name them: every one the plant can have but those
+    screened on request (``effects.ON_REQUEST``: the sensors', the exact sign) and the generic forms."""
+    return tuple(e for e in plant_effects(structure.nominal) if e not in ON_REQUEST and e not in GENERIC)
 
 
 def candidates_for(structure: Structure, allowed=None) -> list[str]:

@@ -101,6 +101,9 @@ class Effect:
     # terms converged at the shipped step (docs/design.md); a flexible rod's hinges are MuJoCo's
     # own springs, stable long before their modes are resolved (diagnosis.loop._refined).
     step_resolved: bool = True
+    # Screened only where the options name it (``--candidates``): a form the data seldom tell
+    # from a richer rival, whose parsimony would otherwise displace it.
+    on_request: bool = False
 
     def __post_init__(self) -> None:
         if self.site not in SITES:

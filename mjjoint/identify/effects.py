@@ -295,6 +295,16 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            evidence=("coulomb", "sin_theta"), plot="motor_velocity", term="friction",
            read=_friction_read(lambda f: {"load_dependent_friction.gain": f.load_gain},
                                lambda f: getattr(f, "load_gain", 0.0) > 0)),
+    # No parameter: the exact sign is a form of the Coulomb term. Asked for, not screened by
+    # default: with no parameter it wins every tie with 2SEP by parsimony, where 2SEP refitted
+    # can predict far better (docs/diagnosis.md, "Model structures").
+    Effect("sticking_friction", "dry motor friction that holds the rotor at rest up to its break-away "
+           "level: sgn(w) exact, where the base's is regularised over v_eps and the rotor creeps",
+           (), lambda m, v: _set_friction(m, v_eps=0.0), requires=("coulomb_friction",),
+           excludes=("dynamic_friction",), evidence=MOTOR_SIGN, plot="motor_velocity", direct_drive=True,
+           term="friction", on_request=True,
+           read=_friction_read(lambda f: {FRICTION_V_EPS: 0.0},
+                               lambda f: isinstance(f, StaticFriction) and f.v_eps == 0.0)),
     Effect("load_friction", "output bearing friction Fc sgn(theta') + d_f theta'",
            (Param("load_friction.fc", 0.1, 1e-4, 50.0, unit="N m"),
             Param("load_friction.viscous", 0.01, 1e-5, 10.0, unit="N m s/rad")),
@@ -380,6 +390,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
 # Effects on what the sensors report: the diagnosis considers them only when asked
 # (``--candidates``), since a sensor's gain or skew can stand in for physics.
 SENSOR_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.site == "sensor")
+# The effects screened only when asked: the sensors' and those declared ``on_request``.
+ON_REQUEST = SENSOR_EFFECTS + tuple(e.name for e in EFFECTS.values() if e.on_request)
 # The generic forms: screened only where no catalogued effect explains a located residual.
 GENERIC = tuple(e.name for e in EFFECTS.values() if e.generic)
 
