@@ -8,10 +8,31 @@ the root's log appeared or grew anyway (a subprocess started in the root, say).
 """
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 
-import mujoco
-import pytest
+
+def _avx512_kernels() -> None:
+    """Run OpenBLAS's AVX-512 kernels wherever the processor has them, before numpy loads.
+
+    Some of the diagnosis's paths hang on the last bits of the linear algebra: the README's route
+    names the play with these kernels and stops one round short of it with the Haswell kernels
+    some machines force (``OPENBLAS_CORETYPE``) on the same processor (docs/diagnosis.md, "The
+    README's route, measured"). The suite's expectations were measured with these kernels.
+    """
+    try:
+        flags = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return
+    if "numpy" not in sys.modules and " avx512f " in flags:
+        os.environ["OPENBLAS_CORETYPE"] = "SkylakeX"
+
+
+_avx512_kernels()
+
+import mujoco  # noqa: E402  (numpy loads with it: after the kernels are chosen)
+import pytest  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 ROOT_LOG = ROOT / "MUJOCO_LOG.TXT"
