@@ -44,13 +44,13 @@ from typing import Callable
 import numpy as np
 from scipy.stats import chi2
 
-from ..identify.effects import EFFECTS, GENERIC, ON_REQUEST, base_params, check_effects, plant_effects
+from ..identify.effects import EFFECTS, base_params, check_effects, plant_effects
 from ..identify.fit import FitResult, finish, fit, window_costs
 from ..identify.intervals import Z95
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust_kept, acceptance, bundle,
-                   gain_shortfalls, parts, screened_params, with_candidate)
+                   default_candidates, gain_shortfalls, parts, screened_params, with_candidate)
 
 
 @dataclass
@@ -112,7 +112,7 @@ def rivals(step: Step, structure: Structure, allowed=None, excluded=()) -> list[
     found indistinguishable; none that needs the effect itself."""
     e = step.effect
     possible = plant_effects(structure.nominal)
-    names = [r for r in possible if r not in ON_REQUEST and r not in GENERIC and related(e, r)]
+    names = [r for r in default_candidates(structure) if related(e, r)]
     names += [parts(a.replace(" + ", BUNDLE))[-1] for a in step.alternatives]
     reduced = without(structure, [e])
     keys = (bundle(r, reduced.effects, possible) for r in dict.fromkeys(names)
