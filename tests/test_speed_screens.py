@@ -63,6 +63,17 @@ def test_which_subset_screens_go_on():
     assert continued([1.2, 1.1, np.inf, 1.3, 1.05], 1.0, names) == [4]
     # A bundle takes its prerequisite screened alone along (``_decide`` prefers it if it passes).
     assert continued([0.9, 0.3, 1.5], 1.0, ["x", "linear_stiffness+backlash", "linear_stiffness"]) == [1, 2]
+    # A screen still descending at its cap after a finer step goes on whatever its subset cost.
+    assert continued([1.2, 1.1, np.inf, 1.3, 1.05], 1.0, names, descending=[3]) == [3, 4]
+    assert continued([0.5, 0.9, 0.7, 2.0, 0.95], 1.0, names, descending=[0]) == [0, 2]
+
+
+def test_a_subset_phase_stopped_by_its_cap_says_so(predictor):
+    start = Structure.create((*BASE, "input_offset"), DriveSpec(), 1.0)
+    capped = fit(predictor, start, max_iter=1, subset_only=True)
+    done = fit(predictor, start, max_iter=30, subset_only=True)
+    assert capped.coarse_capped
+    assert not done.coarse_capped and done.coarse_iterations <= 30
 
 
 def test_the_two_stage_screen_finds_the_candidate_finishing_every_screen_finds(predictor, monkeypatch):
@@ -77,7 +88,7 @@ def test_the_two_stage_screen_finds_the_candidate_finishing_every_screen_finds(p
     assert rest and len(two) <= loop.CONTINUE_MAX
     monkeypatch.setattr(loop, "CONTINUE_MAX", 99)
     monkeypatch.setattr(loop, "CONTINUE_SHARE", -np.inf)
-    monkeypatch.setattr(loop, "continued", lambda costs, null, names: list(range(len(costs))))
+    monkeypatch.setattr(loop, "continued", lambda costs, *_: list(range(len(costs))))
     _, every, none_left = screen()
     assert none_left == {}
     best, _ = _choose(every, base.cost_test)

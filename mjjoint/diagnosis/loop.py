@@ -709,6 +709,7 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         null = fit(predictor, ref.structure, base_names, max_iter=options.screen_iter, subset_only=True)
     firsts: list[FitResult] = []
     starts: list[Structure] = []
+    descending: list[int] = []  # screens taken to a finer step that still descend (``continued``)
     for i, (name, values, settings) in enumerate(trials, 1):
         start = time.perf_counter()
         trial = with_candidate(ref.structure, name, values, settings)
@@ -726,13 +727,16 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
             elif (res.cost_test > FAR_ABOVE_NULL * null.cost_test and name not in stepped
                   and not all(EFFECTS[e].step_resolved for e in parts(name))):
                 res, trial = _refined(predictor, trial, res, freed, options, null.cost_test, name, say, stepped)
+                if name not in stepped and res.coarse_capped:
+                    descending.append(i - 1)
         clock.record(time.perf_counter() - start)
         firsts.append(res)
         starts.append(trial)
         label = f"{name} {settings}" if settings else name
-        say(f"  screened {label} on the subset: held-out cost {null.cost_test:.4g} -> {res.cost_test:.4g} "
-            f"({clock.status(i, len(trials))})")
-    go_on = continued([r.cost_test for r in firsts], null.cost_test, [t[0] for t in trials])
+        say(f"  screened {label} on the subset: held-out cost {null.cost_test:.4g} -> {res.cost_test:.4g}"
+            + (", still descending at the iteration cap" if res.coarse_capped else "")
+            + f" ({clock.status(i, len(trials))})")
+    go_on = continued([r.cost_test for r in firsts], null.cost_test, [t[0] for t in trials], descending)
     screened: dict[str, tuple[float, FitResult]] = {}
     for i in go_on:
         name, _, settings = trials[i]
@@ -758,15 +762,18 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     return ref, screened, rest
 
 
-def continued(costs: list[float], null: float, names: list[str]) -> list[int]:
+def continued(costs: list[float], null: float, names: list[str], descending=()) -> list[int]:
     """Which subset screens (held-out ``costs``, against the ``null``'s) go on over all windows
     (CONTINUE_SHARE): the best, and those that gain on the null at least CONTINUE_SHARE of what the
     best gains, at most CONTINUE_MAX; with each bundle the prerequisite screened alone, which
-    ``_decide`` prefers when it passes."""
+    ``_decide`` prefers when it passes. The ``descending`` go on too: screens a finer step brought
+    near the null whose subset phase still descended at its iteration cap, so their subset point
+    ranks nothing (a rod's modes, started at the located resonance, end far from there)."""
     order = sorted(range(len(costs)), key=lambda i: costs[i] if np.isfinite(costs[i]) else np.inf)
     gains = [null - c if np.isfinite(c) else -np.inf for c in costs]
     best = gains[order[0]]
     keep = [order[0]] + [i for i in order[1:CONTINUE_MAX] if gains[i] > 0 and gains[i] >= CONTINUE_SHARE * best]
+    keep += [i for i in descending if i not in keep]
     for i in list(keep):
         alone = BUNDLE.join(parts(names[i])[:-1])
         keep += [j for j, n in enumerate(names) if alone and n == alone and j not in keep]

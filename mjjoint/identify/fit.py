@@ -108,6 +108,7 @@ class FitResult:
     rollouts: float = 0.0
     seconds: float = 0.0
     coarse_iterations: int = 0  # of ``iterations``, those on the window subset (COARSE_SHARE)
+    coarse_capped: bool = False  # the subset phase stopped at ``max_iter``, not at its step rule
     on_bound: tuple[str, ...] = ()  # fitted parameters on a bound that marks a stand-in (Structure.stand_in_bounds)
     # Per training window (``Predictor.train``), the mean squared normalised residual; and the
     # training windows the fit left out, its model leaving their start open (``Predictor.undetermined``).
@@ -283,8 +284,9 @@ def gauss_newton_step_se(jac: np.ndarray, r: np.ndarray, x: np.ndarray, lo: np.n
     return float(np.sqrt(d2 / max(residual_variance(r, x.size), 1e-300)))
 
 
-def _lm(obj: Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndarray, int]:
-    """(x, iterations): mujoco.minimize's LM from x0 until the step rule, its xtol or max_iter."""
+def _lm(obj: Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndarray, int, bool]:
+    """(x, iterations, capped): mujoco.minimize's LM from x0 until the step rule, its xtol or
+    max_iter; ``capped`` where max_iter stopped it, the cost still falling."""
     iterations = 0
 
     def count(log):
@@ -297,8 +299,9 @@ def _lm(obj: Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndar
                                       mu_factor=MU_FACTOR, verbose=minimize.Verbosity.SILENT, iter_callback=count)
     except Converged:
         on_iter(iterations + 1, obj.costs[-1], obj.m)
-        return obj.jac_at[0], iterations + 1
-    return x.reshape(-1), iterations
+        return obj.jac_at[0], iterations + 1, False
+    # The log holds the start too: max_iter + 1 entries where the cap stopped the LM.
+    return x.reshape(-1), iterations, iterations > max_iter
 
 
 def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int = 25,
@@ -406,12 +409,12 @@ def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, 
     names = [p.name for p in structure.params if wanted is None or p.name in wanted]
     lo, hi = structure.bounds(names)
     x = np.clip(structure.vector(names), lo, hi)
-    done = 0
+    done, capped = 0, False
     subset = coarse_windows(windows, predictor.design.seed)
     if subset is not None:
         scale = _scale_at(predictor, structure, names, robust, x, subset)
         coarse = Objective(predictor, structure, names, subset, lo, hi, COARSE_SE, scale)
-        x, done = _lm(coarse, x, max_iter, _reporter(progress, 0))
+        x, done, capped = _lm(coarse, x, max_iter, _reporter(progress, 0))
     state = _Partial(structure, names, windows, lo, hi, x, done, max_iter, robust)
     if subset_only and subset is not None:
         best = structure.from_vector(x, names)
@@ -419,7 +422,8 @@ def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, 
         cost_test = float(np.mean(np.nan_to_num(predictor.residuals(pred, predictor.test), nan=_BAD) ** 2))
         return FitResult(best, float("nan"), cost_test, {}, predictor.nrmse(pred, predictor.test),
                          iterations=done, rollouts=predictor.rollouts - roll0,
-                         seconds=time.perf_counter() - start, coarse_iterations=done, partial=state)
+                         seconds=time.perf_counter() - start, coarse_iterations=done, coarse_capped=capped,
+                         partial=state)
     return _second_phase(predictor, state, progress, start, roll0)
 
 
@@ -455,7 +459,7 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
         scale = _scale_at(predictor, structure, names, st.robust, x, windows)
         for _ in range(SCALE_ROUNDS):
             obj, obj_scale = Objective(predictor, structure, names, windows, lo, hi, STEP_SE, scale), scale
-            x, k = _lm(obj, x, st.max_iter, _reporter(progress, done))
+            x, k, _ = _lm(obj, x, st.max_iter, _reporter(progress, done))
             done += k
             new = None if scale is None else _scale_at(predictor, structure, names, st.robust, x, windows, obj)
             if new is None or new > scale / 2:
