@@ -13,7 +13,8 @@ import pytest
 from mjjoint.benchmark.cases import GEAR_RATIO, make_case
 from mjjoint.benchmark.score import write_case_recording
 from mjjoint.identify.effect import Param
-from mjjoint.identify.fit import STEP_BIASED, check_intervals, fit, widened
+from mjjoint.identify import fit as fit_module
+from mjjoint.identify.fit import STEP_BIASED, _at_fit, check_intervals, fit, jacobian, widened
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.recordings import read_recording
@@ -50,3 +51,23 @@ def test_a_hysteretic_gears_interval_holds_the_truth_recorded_at_half_the_step(t
     lo, hi = checked.intervals[name]
     assert lo <= truth <= hi, (lo, truth, hi)
     assert any(w.startswith(name) and STEP_BIASED in w for w in checked.warnings)
+
+
+def test_the_jacobian_taken_again_for_the_check_is_the_fits_own(tmp_path, monkeypatch):
+    """A fit result keeps the point its intervals' Jacobian was taken at, not the Jacobian (the
+    residual's size times the parameters); the check takes it again there, the same numbers."""
+    case = make_case("backlash", 0)
+    path = write_case_recording(case, tmp_path, 3.0)
+    predictor = Predictor(Measured.from_recording(read_recording(path, gear_ratio=GEAR_RATIO), GEAR_RATIO),
+                          WindowDesign(seed=0))
+    real, seen = fit_module.intervals, []
+
+    def spy(jac, *args):
+        seen.append(jac.copy())
+        return real(jac, *args)
+    monkeypatch.setattr(fit_module, "intervals", spy)
+    start = Structure.create(case.truth.effects, case.truth.nominal, GEAR_RATIO, settings=case.truth.settings)
+    result = fit(predictor, start, max_iter=5)
+    at = result.at_optimum
+    assert not any(isinstance(v, np.ndarray) and v.size >= seen[-1].size for v in vars(at).values())
+    np.testing.assert_array_equal(jacobian(_at_fit(predictor, result.structure, at), at), seen[-1])

@@ -40,6 +40,7 @@ from scipy.ndimage import uniform_filter1d
 from scipy.signal import welch
 
 from .features import sample_period
+from .window_median import window_medians
 
 REVERSAL_WINDOW_S = 0.030   # [s]: stick-slip and backlash transients last tens of ms
 SMALL_DELTA_QUANTILE = 0.2  # "small |delta|" = the 20 % of samples closest to zero deflection
@@ -295,10 +296,7 @@ def _resonance(dt: float, measured: np.ndarray) -> _Condition | None:
         # the geometric mean of the flanks' median levels (a straight line in log-log, so the
         # slope of coloured noise is no peak), and power up to RESONANCE_PEAK_RATIO times it is
         # Welch scatter.
-        level = np.stack([
-            np.sqrt(np.median(power[a:b], axis=0) * np.median(power[c + 1:d + 1], axis=0))
-            for a, b, c, d in zip(flank_lo, lo, hi, flank_hi)
-        ])
+        level = np.sqrt(window_medians(power, flank_lo, lo) * window_medians(power, hi + 1, flank_hi + 1))
         background = RESONANCE_PEAK_RATIO * level * (hi - lo + 1)[:, None] / power.sum(axis=0)
         excess = band_share(power) - np.maximum(share_m[:, None], background)
         best = np.argmax(excess, axis=0)

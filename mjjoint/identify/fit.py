@@ -249,16 +249,15 @@ class Objective:
             raise Converged
         return jac
 
-    def final(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(r, J) at the fit's x: the last Jacobian's if it was taken there or one step below
-        XTOL away (the LM's own stop), else a fresh one."""
+    def final(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(r, J, the point both were taken at) for the fit's x: the last Jacobian's if it was
+        taken there or one step below XTOL away (the LM's own stop), else a fresh one at x."""
         if self.jac_at is not None:
             xj, rj, jac = self.jac_at
             if np.linalg.norm(x - xj) <= XTOL * (XTOL + np.linalg.norm(x)):
-                return rj, jac
-        r = self._residual(x[:, None])
-        jac, _ = minimize.jacobian_fd(self._residual, x[:, None], r, EPS, 0, self.bounds)
-        return r[:, 0], jac
+                return rj, jac, xj
+        r, jac = fd_jacobian(self._residual, x, self.bounds)
+        return r, jac, x.copy()
 
     def prediction(self, x: np.ndarray) -> dict | None:
         """The predictions at x if the last single-point evaluation was there."""
@@ -266,6 +265,14 @@ class Objective:
             if "x" in seen and np.array_equal(seen["x"], x):
                 return seen["pred"]
         return None
+
+
+def fd_jacobian(residual, x: np.ndarray, bounds) -> tuple[np.ndarray, np.ndarray]:
+    """(r, J) of a ``residual_matrix`` function at the point x (1-d), J by mujoco.minimize's
+    forward differences within ``bounds``."""
+    r = residual(x[:, None])
+    jac, _ = minimize.jacobian_fd(residual, x[:, None], r, EPS, 0, bounds)
+    return r[:, 0], jac
 
 
 def gauss_newton_step_se(jac: np.ndarray, r: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
@@ -470,7 +477,7 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
         if more.size == 0:
             break
         windows = np.setdiff1d(windows, more)
-    r, jac = obj.final(x)
+    r, jac, at = obj.final(x)
     spans, warnings, optimum = intervals(jac, r, x, lo, hi, names, best, predictor.window_blocks(jac, len(windows)),
                                          predictor.window_blocks(r, len(windows)))
     train = predictor.train
@@ -484,19 +491,23 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
                      rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start,
                      coarse_iterations=coarse_done, robust=st.robust,
                      on_bound=best.stand_in_bounds(names, x),
-                     at_optimum=_AtOptimum(optimum, names, windows, obj_scale, jac))
+                     at_optimum=_AtOptimum(optimum, names, windows, obj_scale, at))
 
 
 @dataclass(frozen=True)
 class _AtOptimum:
     """A fit's optimum (``intervals.Optimum``) with what its cost needs: the parameters' names,
-    the windows and the robust loss's scale (None: least squares)."""
+    the windows and the robust loss's scale (None: least squares), and the point the intervals'
+    Jacobian was taken at (the optimum or one LM step below XTOL from it). The Jacobian itself
+    is not kept: it is the size of the residual times the parameters (~75 MB a fit of a
+    10-minute recording) and a diagnosis holds many fits; the one checked takes it anew there,
+    the same numbers (``jacobian``)."""
 
     optimum: Optimum
     names: list[str]
     windows: np.ndarray
     scale: float | None
-    jac: np.ndarray = field(repr=False, compare=False)  # of the residual in the optimiser's coordinates
+    point: np.ndarray
 
 
 def check_intervals(predictor: Predictor, result: FitResult, names, biased=None) -> FitResult:
@@ -526,6 +537,12 @@ def _at_fit(predictor: Predictor, structure: Structure, at: "_AtOptimum"):
     """The residual function of ``structure`` over the fit's windows and under its loss (``at``)."""
     return residual_matrix(lambda structs, w: predictor.predictions(structs, w), structure, at.names, at.windows,
                            predictor, None, at.scale)
+
+
+def jacobian(residual, at: "_AtOptimum") -> np.ndarray:
+    """The Jacobian the fit's intervals were computed from, taken again at its point (``at``) of
+    the fit's residual function (``_at_fit``): p + 1 rollouts of the fit's windows."""
+    return fd_jacobian(residual, at.point, [at.optimum.lo[:, None], at.optimum.hi[:, None]])[1]
 
 
 def reported(predictor: Predictor, result: FitResult) -> FitResult:
@@ -560,7 +577,7 @@ def step_bias(predictor: Predictor, structure: Structure, at: "_AtOptimum", resi
     x = at.optimum.x
     coarse = residual(x)[:, 0]
     halved = _at_fit(predictor, fine, at)(x)[:, 0]
-    move = np.linalg.lstsq(at.jac, coarse - halved, rcond=STEP_RCOND)[0]
+    move = np.linalg.lstsq(jacobian(residual, at), coarse - halved, rcond=STEP_RCOND)[0]
     return STEP_BIAS_FACTOR * move
 
 
