@@ -51,6 +51,10 @@ better where the recording measures it (``gear_law``: the recorded torque from t
 deflection, on the held-out windows): what it gains in simulation otherwise stands in for physics
 elsewhere.
 
+A base whose prediction diverges from its start (its initial values too stiff for the plant's
+step) is fitted at the timestep its stability check asks for, then at the plant's step where its
+fitted values allow (``_base_fit``).
+
 Candidates: every catalogued effect the model lacks; one behind a prerequisite the model lacks
 too is screened together with it (a bundle "linear_stiffness+backlash"): a play cannot show
 through a rigid gear, and a gear spring alone may predict worse than none. A screen whose
@@ -355,7 +359,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     iterations = lambda i, c: say(f"    iteration {i}: cost {c:.4g}")  # noqa: E731
     phases = Phases(lambda: predictor.rollouts)
     with phases("base fit"):
-        current = fit(predictor, base, max_iter=options.fit_iter, progress=iterations)
+        current = _base_fit(predictor, base, options, say, iterations)
     initial = current
     final = None  # the robust final estimate (step 5), once made within the loop
     history = [current]
@@ -830,6 +834,27 @@ def _instability(structure: Structure) -> tuple[str, Structure]:
         share = 2.0 ** min(math.ceil(math.log2(model.opt.timestep / needed)), math.log2(MAX_REFINE))
         return str(err), structure.at_timestep(model.opt.timestep / share)
     return "the simulation diverged from the window starts", structure.at_timestep(model.opt.timestep / 2.0)
+
+
+def _base_fit(predictor: Predictor, base: Structure, options: DiagnoseOptions, say, iterations) -> FitResult:
+    """The base fitted; where its prediction diverges (a start too stiff for the plant's step:
+    the LM cannot move from predictions that are all NaN, and every screen would be judged
+    against them), fitted again at the timestep its stability check asks for, and from there
+    at the plant's step where its fitted values are stable there (``_at_step``)."""
+    result = fit(predictor, base, max_iter=options.fit_iter, progress=iterations)
+    if result.cost_test < UNSTABLE_COST:
+        return result
+    why, finer = _instability(base)
+    if finer is base:  # values the model refuses: no step helps
+        return result
+    say(f"  the base model's prediction diverged ({why}); fitted again at timestep {finer.nominal.timestep:.3g} s")
+    result = fit(predictor, finer, max_iter=options.fit_iter, progress=iterations)
+    back = _at_step(predictor, result.structure, base.nominal.timestep)
+    if back is result.structure:
+        return result
+    say(f"  its fitted values are stable at timestep {base.nominal.timestep:.3g} s: fitted on there")
+    coarse = fit(predictor, back, max_iter=options.fit_iter, progress=iterations)
+    return coarse if coarse.cost_test < UNSTABLE_COST else result
 
 
 def _at_step(predictor: Predictor, structure: Structure, timestep: float) -> Structure:
