@@ -7,6 +7,7 @@ asset's classes, sensors and keyframe. MjSpec (not dm_control.mjcf) because it r
 """
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,9 +22,22 @@ from .stability import check_model_stability
 
 ASSETS_DIR = Path(os.environ.get("MJJOINT_ASSETS", Path(__file__).resolve().parent / "mjcf"))
 ARM_XML = "elastic_joint.xml"
-# History length reserved whenever a delay is on, so models differing only in the delay value
-# keep one size signature (mujoco.rollout batches need that).
+# History reserved whenever a delay is on, so models differing only in the delay value keep one
+# size signature (mujoco.rollout batches need that): MAX_DELAY_SAMPLES steps, or as many as
+# MAX_DELAY_S takes where that is more, so that a model at a fine step (a flexible rod's) still
+# holds every delay the identification fits (``input_delay.delay``, 0 to 10 ms).
 MAX_DELAY_SAMPLES = 24
+MAX_DELAY_S = 0.01
+
+
+def delay_samples(timestep: float) -> int:
+    """The control history's length [steps] of a model at ``timestep`` with a delay."""
+    return max(MAX_DELAY_SAMPLES, math.ceil(MAX_DELAY_S / timestep))
+
+
+def max_delay(timestep: float) -> float:
+    """The longest input delay [s] a model at ``timestep`` holds."""
+    return delay_samples(timestep) * timestep
 
 
 def scene_path(name: str = "scene.xml") -> Path:
@@ -68,7 +82,7 @@ class ArmSpec:
         check("max_current", self.max_current, 0.0, lo_open=True)
         check("timestep", self.timestep, 1e-6, 0.01)
         check("gravity", self.gravity, 0.0, 100.0)
-        check("input_delay", self.input_delay, 0.0, MAX_DELAY_SAMPLES * self.timestep)
+        check("input_delay", self.input_delay, 0.0, max_delay(self.timestep))
         check("input_offset", self.input_offset, -1e3, 1e3)
 
     @property
@@ -97,8 +111,9 @@ class ArmSpec:
         return "mass.tip" if self.tip_mass > 0 else "inertia.link"
 
 
-def set_input(act, k_m: float, offset: float, delay: float) -> None:
-    """Motor input u = k_m ctrl + offset, applied ``delay`` late (native actuator terms).
+def set_input(act, k_m: float, offset: float, delay: float, timestep: float) -> None:
+    """Motor input u = k_m ctrl + offset, applied ``delay`` late (native actuator terms) in a
+    model stepped at ``timestep``.
 
     The offset is an affine actuator bias in ctrl units (MuJoCo multiplies the actuator force,
     gain ctrl + bias, by the gear k_m).
@@ -111,7 +126,7 @@ def set_input(act, k_m: float, offset: float, delay: float) -> None:
         act.biastype = mujoco.mjtBias.mjBIAS_NONE
     if delay > 0:
         act.delay = delay
-        act.nsample = MAX_DELAY_SAMPLES + 2
+        act.nsample = delay_samples(timestep) + 2
         # Linear interpolation of the control history: with MuJoCo's default zero-order hold a
         # delay between two steps is rounded up to the next (1.6 ms delivered 2.0 ms at h = 0.5 ms);
         # interpolated, a held input arrives exactly ``delay`` late in impulse, as the windows'
@@ -162,7 +177,7 @@ def build_arm(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), *,
     rotor.inertia = [transverse, arm.motor_inertia, transverse]
     spec.body("hub").inertia = [arm.hub_inertia] * 3
     _rebuild_rod(spec, arm)
-    set_input(spec.actuator("current"), arm.k_m, arm.input_offset, arm.input_delay)
+    set_input(spec.actuator("current"), arm.k_m, arm.input_offset, arm.input_delay, arm.timestep)
     spec.actuator("current").ctrlrange = [-arm.max_current, arm.max_current]
     # The home keyframe must match the (possibly new) number of joints.
     for key in spec.keys:

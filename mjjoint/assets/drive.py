@@ -15,7 +15,7 @@ import numpy as np
 from ..coupling.plugin import PLUGIN_NAME, register
 from ..joint import GROUND, JointParams
 from ..params import check
-from .builder import MAX_DELAY_SAMPLES, scene_path, set_input
+from .builder import max_delay, scene_path, set_input
 
 DRIVE_XML = "linear_drive.xml"
 JOINT_TYPES = {"slide": mujoco.mjtJoint.mjJNT_SLIDE, "hinge": mujoco.mjtJoint.mjJNT_HINGE}
@@ -52,7 +52,7 @@ class DriveSpec:
         check("ctrl_limit", self.ctrl_limit, 0.0, lo_open=True)
         check("input_offset", self.input_offset, -1e6, 1e6)
         check("timestep", self.timestep, 1e-6, 0.01)
-        check("input_delay", self.input_delay, 0.0, MAX_DELAY_SAMPLES * self.timestep)
+        check("input_delay", self.input_delay, 0.0, max_delay(self.timestep))
         check("force_scale", self.force_scale, 0.0, lo_open=True)
         check("speed_scale", self.speed_scale, 0.0, lo_open=True)
         check("v_eps", self.v_eps, 0.0, lo_open=True)
@@ -92,7 +92,7 @@ def build_drive(drive: DriveSpec = DriveSpec(), joint: JointParams | None = None
         carriage.inertia = [drive.mass] * 3
     act = spec.actuator("force")
     act.ctrlrange = [-drive.ctrl_limit, drive.ctrl_limit]
-    set_input(act, drive.k_m, drive.input_offset, drive.input_delay)
+    set_input(act, drive.k_m, drive.input_offset, drive.input_delay, drive.timestep)
     for key in spec.keys:
         key.qpos = np.zeros(1)
     return spec
