@@ -92,9 +92,10 @@ def test_a_screen_far_above_the_model_it_nests_is_fitted_again_at_finer_steps(mo
 
 
 def test_a_screen_the_model_refuses_is_reported_and_a_refined_step_goes_back_where_it_can():
-    """At a refined step a catalogued start can lie past a limit tied to the step (the native
-    delay's 24 steps): the screen is reported as refused, not raised. A named effect whose fit
-    is stable at the plant's step is refitted there, so later rounds do not run at the finer one."""
+    """Values past a limit the model checks (a delay longer than the native delay's history) are
+    reported as refused, not raised; the catalogued start is held at any refined step. A named
+    effect whose fit is stable at the plant's step is refitted there, so later rounds do not run
+    at the finer one."""
     from mjjoint.assets.builder import ArmSpec
     from mjjoint.diagnosis.loop import _at_step, _instability
     from mjjoint.identify.structure import Structure
@@ -105,9 +106,11 @@ def test_a_screen_the_model_refuses_is_reported_and_a_refined_step_goes_back_whe
 
     h = 5e-4
     fine = ArmSpec(timestep=h / 16)
-    s = Structure.create(("linear_stiffness", "input_delay"), fine, 160.0).with_values({"input_delay.delay": 1e-3})
-    why, again = _instability(s)
-    assert "refuses" in why and "input_delay" in why and again is s
+    s = Structure.create(("linear_stiffness", "input_delay"), fine, 160.0)
+    assert s.values["input_delay.delay"] == 1e-3 and s.model_params()[0].input_delay == 1e-3
+    past = s.with_values({"input_delay.delay": 0.0101})
+    why, again = _instability(past)
+    assert "refuses" in why and "input_delay" in why and again is past
 
     tr = simulate(Multisine().sample(1000, 3))
     pred = Predictor(Measured.from_recording(Recording(t=tr.t, u=tr.u, q=tr.q, theta=tr.theta, tau=tr.tau), 160.0))
