@@ -267,10 +267,10 @@ class Objective:
         return None
 
 
-def fd_jacobian(residual, x: np.ndarray, bounds) -> tuple[np.ndarray, np.ndarray]:
+def fd_jacobian(residual, x: np.ndarray, bounds, r: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(r, J) of a ``residual_matrix`` function at the point x (1-d), J by mujoco.minimize's
-    forward differences within ``bounds``."""
-    r = residual(x[:, None])
+    forward differences within ``bounds``; ``r``: the residual at x where the caller has it."""
+    r = residual(x[:, None]) if r is None else r[:, None]
     jac, _ = minimize.jacobian_fd(residual, x[:, None], r, EPS, 0, bounds)
     return r[:, 0], jac
 
@@ -539,10 +539,12 @@ def _at_fit(predictor: Predictor, structure: Structure, at: "_AtOptimum"):
                            predictor, None, at.scale)
 
 
-def jacobian(residual, at: "_AtOptimum") -> np.ndarray:
+def jacobian(residual, at: "_AtOptimum", r_opt: np.ndarray) -> np.ndarray:
     """The Jacobian the fit's intervals were computed from, taken again at its point (``at``) of
-    the fit's residual function (``_at_fit``): p + 1 rollouts of the fit's windows."""
-    return fd_jacobian(residual, at.point, [at.optimum.lo[:, None], at.optimum.hi[:, None]])[1]
+    the fit's residual function (``_at_fit``): p rollouts of the fit's windows, one more where
+    that point is not the optimum, whose residual ``r_opt`` is given."""
+    r = r_opt if np.array_equal(at.point, at.optimum.x) else None
+    return fd_jacobian(residual, at.point, [at.optimum.lo[:, None], at.optimum.hi[:, None]], r)[1]
 
 
 def reported(predictor: Predictor, result: FitResult) -> FitResult:
@@ -577,7 +579,7 @@ def step_bias(predictor: Predictor, structure: Structure, at: "_AtOptimum", resi
     x = at.optimum.x
     coarse = residual(x)[:, 0]
     halved = _at_fit(predictor, fine, at)(x)[:, 0]
-    move = np.linalg.lstsq(jacobian(residual, at), coarse - halved, rcond=STEP_RCOND)[0]
+    move = np.linalg.lstsq(jacobian(residual, at, coarse), coarse - halved, rcond=STEP_RCOND)[0]
     return STEP_BIAS_FACTOR * move
 
 
