@@ -153,6 +153,28 @@ def test_periodic_in_q_finds_a_random_harmonic(seed):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
+def test_harmonic_scores_equal_the_projection_on_each_harmonic_s_own_basis(seed):
+    """The periodic conditions' scan, harmonics stepped by angle addition and each pair
+    orthonormalised directly, against the plain reference: sin and cos evaluated at every k,
+    centred, an SVD basis, the projection of every column. Whole and real k, the unwrapped
+    motor angle and a link barely moving (its low harmonics nearly one direction), and an
+    angle at rest (no basis: nothing explained)."""
+    from mjjoint.diagnosis.locate import _centered_basis, _explained, harmonic_scores
+    rng = np.random.default_rng(seed)
+    ex = experiment(rng)
+    R = np.column_stack([np.sin(5 * ex.q) + rng.standard_normal(ex.t.size) for _ in range(3)])
+    # the barely moving link's second direction is 1e-8 of its first: both ways round it off
+    for angle, start, step, count, rtol in ((ex.q, 1.0, 1.0, 40, 1e-9), (ex.q, 6.5, 0.01, 101, 1e-9),
+                                            (1e-4 * ex.theta, 2.0, 1.0, 5, 1e-5),
+                                            (np.zeros_like(ex.q), 1.0, 1.0, 3, 0.0)):
+        fast = harmonic_scores(angle, start, step, count, R)
+        ref = np.stack([_explained(_centered_basis(np.column_stack([np.sin(k * angle), np.cos(k * angle)])), R)
+                        if np.ptp(angle) > 0 else np.zeros(R.shape[1])
+                        for k in start + step * np.arange(count)])
+        np.testing.assert_allclose(fast, ref, rtol=rtol, atol=1e-14)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
 def test_residual_at_velocity_reversals_ranks_reversal_first(seed):
     rng = np.random.default_rng(seed)
     ex = experiment(rng)

@@ -91,6 +91,48 @@ def test_a_screen_far_above_the_model_it_nests_is_fitted_again_at_finer_steps(mo
     assert [e.name for e in EFFECTS.values() if not e.step_resolved] == ["link_flexibility"]
 
 
+def test_a_bundle_ending_above_its_prerequisites_alone_is_fitted_again_from_their_screen(monkeypatch):
+    """The shipped arm's play on the README route: the gear and its play screened together from
+    the catalogue's start stall at 1.2, six times the gear alone's 0.19, though the bundle nests
+    the gear. From the gear's own optimum, the play at its start, the bundle fits; the lower screen
+    is kept, and a bundle at or below its prerequisites is not fitted again."""
+    from types import SimpleNamespace
+
+    from mjjoint.assets.builder import ArmSpec
+    from mjjoint.diagnosis import loop
+    from mjjoint.identify.structure import Structure
+
+    k_alone = 7000.0
+    calls = []
+
+    def fake_fit(predictor, s, names, **kw):
+        calls.append(s)
+        return SimpleNamespace(cost_test=0.05 if s.values["linear_stiffness.k1"] == k_alone else 1.2, structure=s)
+
+    monkeypatch.setattr(loop, "fit", fake_fit)
+    base = Structure.create(("coulomb_friction",), ArmSpec(), 160.0)
+    alone = SimpleNamespace(cost_test=0.19, structure=loop.with_candidate(base, "linear_stiffness").with_values(
+        {"linear_stiffness.k1": k_alone}))
+    key = "linear_stiffness+backlash"
+    trial = loop.with_candidate(base, key)
+    variant = {"backlash.width": 3e-4, "linear_stiffness.k1": 2e4}  # a start read from the recording
+
+    def nested(first, best_of):
+        return loop._nested(None, key, variant, {}, SimpleNamespace(cost_test=first, structure=trial), trial,
+                            best_of, None, loop.DiagnoseOptions())
+    res, start = nested(1.2, {"linear_stiffness": alone})
+    assert res.cost_test == 0.05 and start.effects == ("coulomb_friction", "linear_stiffness", "backlash")
+    # the prerequisite where its screen ended, the effect at the variant's start
+    assert start.values["linear_stiffness.k1"] == k_alone and start.values["backlash.width"] == 3e-4
+    calls.clear()
+    assert nested(0.15, {"linear_stiffness": alone}) == (SimpleNamespace(cost_test=0.15, structure=trial), trial)
+    assert nested(1.2, {})[0].cost_test == 1.2 and not calls
+    # a retry that gains nothing leaves the first screen
+    monkeypatch.setattr(loop, "fit", lambda predictor, s, names, **kw: SimpleNamespace(cost_test=1.3, structure=s))
+    res, start = nested(1.2, {"linear_stiffness": alone})
+    assert res.cost_test == 1.2 and start is trial
+
+
 def test_a_screen_the_model_refuses_is_reported_and_a_refined_step_goes_back_where_it_can():
     """Values past a limit the model checks (a delay longer than the native delay's history) are
     reported as refused, not raised; the catalogued start is held at any refined step. A named

@@ -714,6 +714,7 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     firsts: list[FitResult] = []
     starts: list[Structure] = []
     descending: list[int] = []  # screens taken to a finer step that still descend (``continued``)
+    best_of: dict[str, FitResult] = {}  # each candidate's best subset screen so far (``_nested``)
     for i, (name, values, settings) in enumerate(trials, 1):
         start = time.perf_counter()
         trial = with_candidate(ref.structure, name, values, settings)
@@ -733,12 +734,17 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
                 res, trial = _refined(predictor, trial, res, freed, options, null.cost_test, name, say, stepped)
                 if name not in stepped and res.coarse_capped:
                     descending.append(i - 1)
+            tried = trial
+            res, trial = _nested(predictor, name, values, settings, res, trial, best_of, freed, options)
+        if name not in best_of or res.cost_test < best_of[name].cost_test:
+            best_of[name] = res
         clock.record(time.perf_counter() - start)
         firsts.append(res)
         starts.append(trial)
         label = f"{name} {settings}" if settings else name
         say(f"  screened {label} on the subset: held-out cost {null.cost_test:.4g} -> {res.cost_test:.4g}"
             + (", still descending at the iteration cap" if res.coarse_capped else "")
+            + (", started from its prerequisites' screen" if trial is not tried else "")
             + f" ({clock.status(i, len(trials))})")
     go_on = continued([r.cost_test for r in firsts], null.cost_test, [t[0] for t in trials], descending)
     screened: dict[str, tuple[float, FitResult]] = {}
@@ -782,6 +788,24 @@ def continued(costs: list[float], null: float, names: list[str], descending=()) 
         alone = BUNDLE.join(parts(names[i])[:-1])
         keep += [j for j, n in enumerate(names) if alone and n == alone and j not in keep]
     return sorted(keep)
+
+
+def _nested(predictor: Predictor, name: str, values: dict, settings: dict, res: FitResult, trial: Structure,
+            best_of: dict[str, FitResult], freed, options: DiagnoseOptions) -> tuple[FitResult, Structure]:
+    """(the screen, its start) of bundle ``name``, fitted again from its prerequisites' own screen
+    where it ended above it: a bundle nests its prerequisites (its effect at zero is them), so
+    ending above them is a fit that stalled, not evidence. From their optimum, the effect at
+    its start, the bundle begins where they ended (the shipped arm's play: the gear and its play
+    from the catalogue's start stalled at 6x the held-out cost of the gear alone, from which the
+    play then has to be found a round later). The lower screen is kept."""
+    *needed, effect = parts(name)
+    prior = best_of.get(BUNDLE.join(needed))
+    if not needed or prior is None or not res.cost_test > prior.cost_test:
+        return res, trial
+    own = {p.name for p in EFFECTS[effect].params}
+    again = prior.structure.with_effect(effect, {k: v for k, v in values.items() if k in own}, settings)
+    res2 = fit(predictor, again, freed, max_iter=options.screen_iter, subset_only=True)
+    return (res2, again) if res2.cost_test < res.cost_test else (res, trial)
 
 
 UNSTABLE_COST = 1e5  # a held-out cost this high holds predictions that diverged (identify.fit._BAD)
