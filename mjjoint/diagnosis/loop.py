@@ -795,9 +795,7 @@ def _nested(predictor: Predictor, name: str, values: dict, settings: dict, res: 
     """(the screen, its start) of bundle ``name``, fitted again from its prerequisites' own screen
     where it ended above it: a bundle nests its prerequisites (its effect at zero is them), so
     ending above them is a fit that stalled, not evidence. From their optimum, the effect at
-    its start, the bundle begins where they ended (the shipped arm's play: the gear and its play
-    from the catalogue's start stalled at 6x the held-out cost of the gear alone, from which the
-    play then has to be found a round later). The lower screen is kept."""
+    its start, the bundle begins where they ended. The lower screen is kept."""
     *needed, effect = parts(name)
     prior = best_of.get(BUNDLE.join(needed))
     if not needed or prior is None or not res.cost_test > prior.cost_test:
