@@ -7,7 +7,7 @@ import pytest
 from mjjoint.benchmark.independent import (BoucWenLaw, JointPlant, LuGre, MaxwellSlip, Rod, StopHysteresis, TwoSEP,
                                           simulate)
 from mjjoint.benchmark.independent.cases import CASES, make_case
-from mjjoint.benchmark.independent.record import Excitation, quantise
+from mjjoint.benchmark.independent.record import Excitation, low_pass, quantise
 
 
 def _conservative(**over) -> JointPlant:
@@ -163,6 +163,25 @@ def test_quantised_sensors_sit_on_their_grid():
     step = 2 * np.pi / 2 ** 12
     assert np.allclose(quantise(x, 12) / step, np.round(quantise(x, 12) / step))
     assert np.max(np.abs(quantise(x, 12) - x)) <= step / 2 + 1e-12
+
+
+def test_the_torque_cells_low_pass_is_first_order_with_its_time_constant():
+    """Sampled, a unit step's response is the continuous lag's (1 - 1/e after one time
+    constant); a sine comes out late by the continuous lag's atan(w tc) / w as the rate grows."""
+    tc, w = 2e-3, 2 * np.pi * 5.0
+    step = low_pass(np.r_[0.0, np.ones(999)], tc, 1000.0)
+    assert step[0] == 0.0 and np.allclose(step[1:], 1 - np.exp(-np.arange(1, 1000) / (1000.0 * tc)), rtol=1e-12)
+    lags = []
+    for rate in (1e3, 1e4, 1e5):
+        t = np.arange(0.0, 1.0, 1.0 / rate)
+        keep = t > 0.2  # the start's transient decayed
+        out = low_pass(np.sin(w * t), tc, rate)[keep]
+        a, b = np.linalg.lstsq(np.column_stack([np.sin(w * t[keep]), np.cos(w * t[keep])]), out, rcond=None)[0]
+        lags.append(-np.arctan2(b, a) / w)
+        assert np.hypot(a, b) == pytest.approx(1 / np.hypot(1, w * tc), abs=2e-3)
+    errors = np.abs(np.array(lags) - np.arctan(w * tc) / w)
+    assert errors[-1] < 0.01 * tc and errors[0] / errors[1] > 8 and errors[1] / errors[2] > 8
+    assert np.array_equal(low_pass(np.arange(5.0), 0.0, 1000.0), np.arange(5.0))
 
 
 def test_every_case_draws_a_plant_and_the_reference_is_continuous():

@@ -1,5 +1,6 @@
-"""Sensor effects: a link encoder read late (time skew) and a torque sensor's offset and gain
-change what is measured, not the physics; injected into a recording, the fit recovers them."""
+"""Sensor effects: a link encoder or a torque sensor read late (time skew) and a torque sensor's
+offset and gain change what is measured, not the physics; injected into a recording, the fit
+recovers them."""
 from __future__ import annotations
 
 import numpy as np
@@ -43,7 +44,26 @@ def test_skew_and_torque_sensor_errors_are_recovered_where_injected():
     assert v["torque_offset.offset"] == pytest.approx(INJECTED["torque_offset.offset"], rel=0.05)
 
 
-def test_the_diagnosis_considers_sensor_effects_only_when_asked():
+def test_a_torque_sensor_read_late_is_recovered():
+    truth = Structure.create(PHYSICS, ArmSpec(segments=0, gravity=0.0), 160.0, TRUTH)
+    arm, joint = truth.model_params()
+    trace = mjjoint.simulate(mjjoint.Multisine().sample(1000, 6), arm=arm, joint=joint)
+    lag = 1.3e-3
+    rec = Recording(t=trace.t, u=trace.u, q=trace.q, theta=trace.theta, tau=np.interp(trace.t - lag, trace.t, trace.tau))
+    pred = Predictor(Measured.from_recording(rec, 160.0), WindowDesign())
+    res = fit(pred, truth.with_effect("torque_skew"), names=("torque_skew.lag",), max_iter=15)
+    assert res.structure.values["torque_skew.lag"] == pytest.approx(lag, rel=0.05)
+
+
+def test_the_diagnosis_screens_the_skews_by_default_and_a_gain_or_offset_only_when_asked():
     s = Structure.create(PHYSICS, ArmSpec(), 160.0)
-    assert not set(SENSOR_EFFECTS) & set(candidates_for(s))
+    skews, gain_offset = {"sensor_skew", "torque_skew"}, {"torque_gain", "torque_offset"}
+    assert set(SENSOR_EFFECTS) == skews | gain_offset
+    assert skews <= set(candidates_for(s)) and not gain_offset & set(candidates_for(s))
     assert set(candidates_for(s, SENSOR_EFFECTS)) == set(SENSOR_EFFECTS)
+    # only where the fit scores a signal the sensor effect changes: a skew of the link encoder
+    # on a fit of the motor angle alone would act through the windows' start states alone
+    assert not skews & set(candidates_for(s, scored=("q",)))
+    assert skews <= set(candidates_for(s, scored=("q", "delta", "tau")))
+    assert candidates_for(s, SENSOR_EFFECTS, scored=("q", "theta")) == ["sensor_skew"]
+    assert set(candidates_for(s, SENSOR_EFFECTS, scored=("tau",))) == {"torque_skew"} | gain_offset

@@ -159,8 +159,10 @@ class Step:
     @property
     def label(self) -> str:
         text = self.effect + (f" (with {', '.join(self.prerequisites)})" if self.prerequisites else "")
-        causes = EFFECTS[self.effect].causes
-        return text + (f" [a generic form; it arises from {causes}]" if causes else "")
+        effect = EFFECTS[self.effect]
+        if effect.site == "sensor":
+            return text + " [a sensor effect: how the signal is measured, not the joint's physics]"
+        return text + (f" [a generic form; it arises from {effect.causes}]" if effect.causes else "")
 
     def as_dict(self) -> dict:
         return {"effect": self.effect, "evidence": self.evidence, "where": self.where,
@@ -319,11 +321,15 @@ def default_candidates(structure: Structure) -> tuple[str, ...]:
     return tuple(e for e in plant_effects(structure.nominal) if e not in ON_REQUEST and e not in GENERIC)
 
 
-def candidates_for(structure: Structure, allowed=None) -> list[str]:
+def candidates_for(structure: Structure, allowed=None, scored=None) -> list[str]:
     """The effects to screen on ``structure``: each one it lacks, bundled with the prerequisites
-    it lacks too (module doc)."""
+    it lacks too (module doc); where the signals the fit ``scored`` are given, no sensor effect
+    that changes none of them (a skew of the link encoder on a fit of the motor angle would act
+    through the windows' start states alone, a stand-in)."""
     possible = plant_effects(structure.nominal)
     names = list(default_candidates(structure)) if allowed is None else [e for e in allowed if e in possible]
+    if scored is not None:
+        names = [e for e in names if EFFECTS[e].site != "sensor" or set(EFFECTS[e].senses) & set(scored)]
     keys = (bundle(e, structure.effects, possible) for e in names if e not in structure.effects)
     return [k for k in keys if k is not None]
 
@@ -702,7 +708,7 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         with clock.phases("screens, reference refitted"):
             ref = fit(predictor, current.structure, max_iter=options.fit_iter)
         say(f"  reference, the model refitted: held-out cost {current.cost_test:.4g} -> {ref.cost_test:.4g}")
-    trials = [(name, values, settings) for name in candidates_for(ref.structure, options.candidates)
+    trials = [(name, values, settings) for name in candidates_for(ref.structure, options.candidates, predictor.signals)
               for values, settings in _candidate_variants(parts(name)[-1], where, ref.structure)]
     say(f"round {clock.round} of {clock.rounds}: screening {len(trials)} candidate fits"
         + (" with every parameter free" if free_all else "") + ", first on a subset of the windows")

@@ -85,6 +85,7 @@ class Effect:
     # A sensor effect changes what is measured, not the physics: it maps the predicted signals
     # (windows x samples arrays by name), given the values and the sample rate.
     measure: Callable[[dict, dict[str, float], float], dict] | None = None
+    senses: tuple[str, ...] = ()       # the measured signals ``measure`` changes
     evidence: tuple[str, ...] = ()     # located conditions (diagnosis.locate) it would explain
     acts_under: str | None = None      # the one condition it acts mainly under, rank-tested there too
     plot: str = ""                     # its evidence figure (report.evidence.PLOTS)

@@ -372,26 +372,32 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            read=lambda m: _arm_value(m, "input_offset", "input_offset.offset")),
     Effect("sensor_skew", "the link encoder read late against the motor encoder and input (time skew)",
            (Param("sensor_skew.lag", 0.0, -0.01, 0.01, log=False, unit="s"),),
-           lambda m, v: m, site="sensor", measure=_skewed, plot="time_shift"),
+           lambda m, v: m, site="sensor", measure=_skewed, senses=("theta", "delta"), plot="time_shift"),
+    Effect("torque_skew", "the torque sensor read late (its filter's lag or a timing skew)",
+           (Param("torque_skew.lag", 0.0, -0.01, 0.01, log=False, unit="s"),),
+           lambda m, v: m, site="sensor", senses=("tau",), evidence=("lag",), plot="time_shift",
+           measure=lambda p, v, rate: {**p, "tau": shift_late(p["tau"], v["torque_skew.lag"] * rate)}),
     # Gain before offset (effects apply in catalogue order): tau_measured = gain tau + offset.
     Effect("torque_gain", "gain error of the torque sensor (measured tau only)",
            (Param("torque_gain.gain", 1.0, 0.2, 5.0, unit=""),),
            lambda m, v: m, site="sensor", measure=lambda p, v, rate: {**p, "tau": p["tau"] * v["torque_gain.gain"]},
-           plot="measured_torque"),
+           senses=("tau",), plot="measured_torque", on_request=True),
     Effect("torque_offset", "constant bias of the torque sensor (measured tau only)",
            (Param("torque_offset.offset", 0.0, -100.0, 100.0, log=False, unit="N m"),),
            lambda m, v: m, site="sensor",
-           measure=lambda p, v, rate: {**p, "tau": p["tau"] + v["torque_offset.offset"]}, plot="measured_torque"),
+           measure=lambda p, v, rate: {**p, "tau": p["tau"] + v["torque_offset.offset"]}, senses=("tau",),
+           plot="measured_torque", on_request=True),
     # The open vocabulary (identify.generic), then the user terms' effects (physics.catalogue).
     *GENERIC_EFFECTS,
     *(e for module in MODULES for e in getattr(module, "EFFECTS", ())),
 )}
 
-# Effects on what the sensors report: the diagnosis considers them only when asked
-# (``--candidates``), since a sensor's gain or skew can stand in for physics.
+# Effects on what the sensors report: screened only where the fit scores a signal they change
+# (``Effect.senses``); the torque sensor's only when asked, since its gain or offset can stand
+# in for any physics that moves tau.
 SENSOR_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.site == "sensor")
-# The effects screened only when asked: the sensors' and those declared ``on_request``.
-ON_REQUEST = SENSOR_EFFECTS + tuple(e.name for e in EFFECTS.values() if e.on_request)
+# The effects screened only when asked (``Effect.on_request``).
+ON_REQUEST = tuple(e.name for e in EFFECTS.values() if e.on_request)
 # The generic forms: screened only where no catalogued effect explains a located residual.
 GENERIC = tuple(e.name for e in EFFECTS.values() if e.generic)
 

@@ -188,6 +188,14 @@ def _position_friction_and_hysteresis(r):
         {"right": ("transmission_hysteresis", *truth["right"])}
 
 
+def _link_skew(r):
+    return _lab(r), {"right": ("sensor_skew",), "sensors": Sensors(link_skew=r.uniform(1e-3, 3e-3))}
+
+
+def _torque_filter(r):
+    return _lab(r), {"right": ("torque_skew",), "sensors": Sensors(torque_filter=r.uniform(5e-4, 2e-3))}
+
+
 CASES: dict[str, tuple[str, Callable]] = {
     "control": ("nothing beyond the base: LuGre friction, linear gear", _control),
     "coarse_encoder": ("nothing beyond the base; 11-bit motor encoder with noise", _coarse_encoder),
@@ -209,6 +217,8 @@ CASES: dict[str, tuple[str, Callable]] = {
     "twosep": ("2SEP friction read from the chapter alone (z2 restarted at reversals), K 2000-5000, B 100-300",
                _twosep),
     "seed_joint": ("the chapter's joint: that 2SEP and a Bouc-Wen gear", _seed_joint),
+    "link_skew": ("the link encoder read 1-3 ms late (a timing skew between the encoders)", _link_skew),
+    "torque_filter": ("the torque cell behind a first-order low-pass, 0.5-2 ms", _torque_filter),
 }
 CONTROLS = ("control", "coarse_encoder")
 

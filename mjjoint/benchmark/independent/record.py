@@ -3,8 +3,9 @@
 The excitation is not the development set's lab programme (down-chirp, sweep, steps): a link
 reference of a slow sine through gravity, a random-phase multisine, and a dwell-and-reverse
 segment, tracked by a PD position loop on the motor encoder at the sample rate. Sensors: the
-motor angle quantised to ``motor_bits`` per revolution, the link angle to ``link_bits``, the
-transmission torque with white noise.
+motor angle quantised to ``motor_bits`` per revolution, the link angle to ``link_bits`` (read
+``link_skew`` late: a timing skew between the encoders), the transmission torque through the
+cell's low-pass (``torque_filter``) with white noise.
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.signal import lfilter
 
 from .plant import JointPlant, simulate
 
@@ -23,6 +25,8 @@ class Sensors:
     link_bits: int = 20
     torque_noise: float = 0.05      # [N m] rms
     motor_noise: float = 0.0        # [rad] rms before quantisation
+    link_skew: float = 0.0          # [s] the link encoder read this late against the motor's
+    torque_filter: float = 0.0      # [s] time constant of the torque cell's first-order low-pass
 
 
 @dataclass(frozen=True)
@@ -59,6 +63,16 @@ def quantise(x: np.ndarray, bits: int) -> np.ndarray:
     return np.round(x / step) * step
 
 
+def low_pass(x: np.ndarray, tc: float, rate: float) -> np.ndarray:
+    """``x`` (sampled at ``rate``) through a first-order low-pass of time constant ``tc`` [s],
+    y[n] = a y[n-1] + (1 - a) x[n] with a = exp(-1 / (rate tc)), at rest at ``x[0]`` before the
+    first sample: a step's samples are the continuous lag's."""
+    if tc <= 0:
+        return x
+    a = math.exp(-1.0 / (rate * tc))
+    return lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[0]])[0]
+
+
 def record(plant: JointPlant, excitation: Excitation, sensors: Sensors, seed: int = 0,
            substeps: int = 10) -> dict[str, np.ndarray]:
     """Simulate the closed loop; return the recorded columns t, u, q, theta, tau (SI)."""
@@ -83,8 +97,8 @@ def record(plant: JointPlant, excitation: Excitation, sensors: Sensors, seed: in
     traj = simulate(plant, t, controller, substeps)
     q_meas[-1] = float(quantise(np.array(traj.states[-1, 0] + rng.normal(0, sensors.motor_noise)),
                                 sensors.motor_bits))
-    theta = quantise(traj.states[:, 2], sensors.link_bits)
-    tau = traj.torque + rng.normal(0, sensors.torque_noise, len(t))
+    theta = quantise(np.interp(t - sensors.link_skew, t, traj.states[:, 2]), sensors.link_bits)
+    tau = low_pass(traj.torque, sensors.torque_filter, excitation.rate) + rng.normal(0, sensors.torque_noise, len(t))
     return {"t": t, "u": traj.u, "q": q_meas, "theta": theta, "tau": tau}
 
 
