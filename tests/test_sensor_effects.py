@@ -67,3 +67,12 @@ def test_the_diagnosis_screens_the_skews_by_default_and_a_gain_or_offset_only_wh
     assert skews <= set(candidates_for(s, scored=("q", "delta", "tau")))
     assert candidates_for(s, SENSOR_EFFECTS, scored=("q", "theta")) == ["sensor_skew"]
     assert set(candidates_for(s, SENSOR_EFFECTS, scored=("tau",))) == {"torque_skew"} | gain_offset
+
+
+def test_a_sensor_effect_must_name_the_signals_it_senses():
+    from mjjoint.identify.effect import Effect
+    with pytest.raises(ValueError, match="senses"):
+        Effect("clock_skew", "a sensor read late", (), lambda m, v: m, site="sensor", measure=lambda p, v, r: p,
+               plot="time_shift")
+    with pytest.raises(ValueError, match="senses"):
+        Effect("cable", "a cable to the ground", (), lambda m, v: m, site="link", senses=("theta",), plot="sin_theta")

@@ -111,6 +111,9 @@ class Effect:
             raise ValueError(f"effect {self.name!r}: site={self.site!r} is not one of {', '.join(SITES)}")
         if self.plot not in PLOTS:
             raise ValueError(f"effect {self.name!r}: plot={self.plot!r} is not one of {', '.join(PLOTS)}")
+        if (self.site == "sensor") != bool(self.senses):
+            raise ValueError(f"effect {self.name!r}: a sensor effect, and only one, names the signals it senses "
+                             f"(site={self.site!r}, senses={self.senses!r})")
         for p in self.params:
             if p.name.split(".", 1)[0] != self.name:
                 raise ValueError(f"parameter {p.name!r} of effect {self.name!r} must be named {self.name}.<symbol>")
