@@ -61,12 +61,13 @@ def test_the_diagnosis_screens_the_skews_by_default_and_a_gain_or_offset_only_wh
     assert set(SENSOR_EFFECTS) == skews | gain_offset
     assert skews <= set(candidates_for(s)) and not gain_offset & set(candidates_for(s))
     assert set(candidates_for(s, SENSOR_EFFECTS)) == set(SENSOR_EFFECTS)
-    # only where the fit scores a signal the sensor effect changes: a skew of the link encoder
-    # on a fit of the motor angle alone would act through the windows' start states alone
+    # by default only where the fit scores a signal the sensor effect changes: a skew of the link
+    # encoder on a fit of the motor angle would act through the windows' start states alone
     assert not skews & set(candidates_for(s, scored=("q",)))
     assert skews <= set(candidates_for(s, scored=("q", "delta", "tau")))
-    assert candidates_for(s, SENSOR_EFFECTS, scored=("q", "theta")) == ["sensor_skew"]
-    assert set(candidates_for(s, SENSOR_EFFECTS, scored=("tau",))) == {"torque_skew"} | gain_offset
+    assert skews & set(candidates_for(s, scored=("q", "theta"))) == {"sensor_skew"}
+    # asked for, they are screened whatever the fit scores
+    assert set(candidates_for(s, SENSOR_EFFECTS, scored=("q",))) == set(SENSOR_EFFECTS)
 
 
 def test_a_sensor_effect_must_name_the_signals_it_senses():

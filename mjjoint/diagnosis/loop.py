@@ -323,13 +323,15 @@ def default_candidates(structure: Structure) -> tuple[str, ...]:
 
 def candidates_for(structure: Structure, allowed=None, scored=None) -> list[str]:
     """The effects to screen on ``structure``: each one it lacks, bundled with the prerequisites
-    it lacks too (module doc); where the signals the fit ``scored`` are given, no sensor effect
-    that changes none of them (a skew of the link encoder on a fit of the motor angle would act
-    through the windows' start states alone, a stand-in)."""
+    it lacks too (module doc). By default (no ``allowed`` list), where the signals the fit
+    ``scored`` are given, no sensor effect that changes none of them: a skew of the link encoder
+    on a fit of the motor angle would act through the windows' start states alone, a stand-in."""
     possible = plant_effects(structure.nominal)
-    names = list(default_candidates(structure)) if allowed is None else [e for e in allowed if e in possible]
-    if scored is not None:
-        names = [e for e in names if EFFECTS[e].site != "sensor" or set(EFFECTS[e].senses) & set(scored)]
+    if allowed is not None:
+        names = [e for e in allowed if e in possible]
+    else:
+        names = [e for e in default_candidates(structure) if scored is None or EFFECTS[e].site != "sensor"
+                 or set(EFFECTS[e].senses) & set(scored)]
     keys = (bundle(e, structure.effects, possible) for e in names if e not in structure.effects)
     return [k for k in keys if k is not None]
 
