@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 
 from mjjoint.api.problem import joint_problems
 from mjjoint.assets import ArmSpec
-from mjjoint.diagnosis.gear_law import law_ratio
+from mjjoint.diagnosis.gear_law import law_ratio, law_site
 from mjjoint.excitation import Multisine
+from mjjoint.identify.effects import EFFECTS
 from mjjoint.joint import JointParams
 from mjjoint.physics.stribeck import StaticFriction
 from mjjoint.physics.transmission import Transmission
@@ -23,13 +25,14 @@ TRUE = {"linear_stiffness.k1": K1, "transmission_damping.d": D, "coulomb_frictio
         "viscous_friction.sigma": 2e-4}
 
 
-def _problem(backlash: float, tau: bool = True):
+def _problem(backlash: float, tau: bool = True, tau_late: float = 0.0):
     arm = ArmSpec(segments=0, gravity=0.0)
     joint = JointParams(friction=StaticFriction(fc=0.05, fs=0.05, sigma=2e-4), load_friction=None,
                         transmission=Transmission(gear_ratio=160.0, k1=K1, k3=0.0, damping=D, hysteresis=None,
                                                   backlash=backlash))
     trace = simulate(Multisine(amplitude=0.5, seed=1).sample(1000, 6), arm=arm, joint=joint)
-    rec = Recording(t=trace.t, u=trace.u, q=trace.q, theta=trace.theta, tau=trace.tau if tau else None)
+    recorded_tau = np.interp(trace.t - tau_late, trace.t, trace.tau)  # the cell reads tau_late late
+    rec = Recording(t=trace.t, u=trace.u, q=trace.q, theta=trace.theta, tau=recorded_tau if tau else None)
     return next(iter(joint_problems(rec, dict(gear_ratio=160.0, base=BASE)).values()))
 
 
@@ -52,6 +55,21 @@ def test_a_hysteresis_the_gear_lacks_fits_it_worse(linear):
     assert law_ratio(linear.predictor, before, after, "gear") > 1.0
     # the truth against itself: no change
     assert law_ratio(linear.predictor, before, before, "gear") == pytest.approx(1.0)
+
+
+def test_a_torque_sensor_read_late_is_judged_by_the_law_too(linear):
+    """A late torque cell puts the recorded torque behind the recorded deflection: its skew fits
+    the law better where the cell is late and worse where it is not (a current loop's lag, which
+    delays the gear's deflection and torque alike, would otherwise take the cell's skew)."""
+    assert law_site(EFFECTS["torque_skew"]) == "gear" and law_site(EFFECTS["torque_gain"]) == "gear"
+    assert law_site(EFFECTS["sensor_skew"]) == "sensor" and law_site(EFFECTS["backlash"]) == "gear"
+    late = _problem(0.0, tau_late=1.5e-3)
+    truth = late.base.with_values(TRUE)
+    skewed = truth.with_effect("torque_skew", {"torque_skew.lag": 1.5e-3})
+    assert law_ratio(late.predictor, truth, skewed, law_site(EFFECTS["torque_skew"])) < 0.2
+    before = linear.base.with_values(TRUE)
+    assert law_ratio(linear.predictor, before, before.with_effect("torque_skew", {"torque_skew.lag": 1.5e-3}),
+                     "gear") > 1.0
 
 
 def test_it_is_silent_where_the_law_is_not_measured(linear):

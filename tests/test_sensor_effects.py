@@ -55,18 +55,17 @@ def test_a_torque_sensor_read_late_is_recovered():
     assert res.structure.values["torque_skew.lag"] == pytest.approx(lag, rel=0.05)
 
 
-def test_the_diagnosis_screens_the_skews_by_default_and_a_gain_or_offset_only_when_asked():
+def test_the_diagnosis_screens_the_link_skew_by_default_and_the_torque_sensor_only_when_asked():
     s = Structure.create(PHYSICS, ArmSpec(), 160.0)
-    skews, gain_offset = {"sensor_skew", "torque_skew"}, {"torque_gain", "torque_offset"}
-    assert set(SENSOR_EFFECTS) == skews | gain_offset
-    assert skews <= set(candidates_for(s)) and not gain_offset & set(candidates_for(s))
+    torque_sensor = {"torque_skew", "torque_gain", "torque_offset"}
+    assert set(SENSOR_EFFECTS) == torque_sensor | {"sensor_skew"}
+    assert "sensor_skew" in candidates_for(s) and not torque_sensor & set(candidates_for(s))
     assert set(candidates_for(s, SENSOR_EFFECTS)) == set(SENSOR_EFFECTS)
-    # by default only where the fit scores a signal the sensor effect changes: a skew of the link
-    # encoder on a fit of the motor angle would act through the windows' start states alone
-    assert not skews & set(candidates_for(s, scored=("q",)))
-    assert skews <= set(candidates_for(s, scored=("q", "delta", "tau")))
-    assert skews & set(candidates_for(s, scored=("q", "theta"))) == {"sensor_skew"}
-    # asked for, they are screened whatever the fit scores
+    # by default only where the fit scores a signal the skew changes: on a fit of the motor angle
+    # alone it would act through the windows' start states alone
+    assert "sensor_skew" not in candidates_for(s, scored=("q",))
+    assert "sensor_skew" in candidates_for(s, scored=("q", "delta"))
+    # asked for, the sensor effects are screened whatever the fit scores
     assert set(candidates_for(s, SENSOR_EFFECTS, scored=("q",))) == set(SENSOR_EFFECTS)
 
 

@@ -41,6 +41,15 @@ def law_costs(predictor: Predictor, structure: Structure, windows: np.ndarray) -
     return np.mean((m.tau[idx] - seen["tau"]) ** 2, axis=1)
 
 
+def law_site(effect) -> str:
+    """The site ``law_ratio`` judges an ``Effect`` at: "gear" for an effect at the gear (it
+    changes the law and nothing else) and for one of the torque sensor's (``Effect.senses`` tau
+    alone: it changes what the recording reports of the law's torque, a lag of the cell the
+    recorded torque behind the recorded deflection); its own site otherwise."""
+    torque_sensor = effect.site == "sensor" and set(effect.senses) <= {"tau"}
+    return "gear" if torque_sensor else effect.site
+
+
 def law_ratio(predictor: Predictor, before: Structure, after: Structure, effect_site: str) -> float | None:
     """The held-out windows' gear-law cost of ``after`` over that of ``before`` (below 1: the
     measured law is fitted better); None where it does not apply: an effect elsewhere than the

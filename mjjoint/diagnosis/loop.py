@@ -46,10 +46,10 @@ the windows' costs: a few lucky windows do not make an effect; a rank test becau
 reductions are heavy-tailed, large on transients and small elsewhere; ratios because windows'
 costs span a decade or more, and a difference would rank a window by its size, not its gain),
 AND it lowers the BIC n log(RSS/n) + p log(n), which charges every added parameter, over the training windows both
-fits were fitted on (``FitResult.left_out``). An effect at the gear must also fit the gear's own law
-better where the recording measures it (``gear_law``: the recorded torque from the recorded
-deflection, on the held-out windows): what it gains in simulation otherwise stands in for physics
-elsewhere.
+fits were fitted on (``FitResult.left_out``). An effect at the gear, or at the torque sensor, must
+also fit the gear's own law better where the recording measures it (``gear_law``: the recorded
+torque from the recorded deflection, on the held-out windows): what it gains in simulation
+otherwise stands in for physics elsewhere.
 
 A base whose prediction diverges from its start (its initial values too stiff for the plant's
 step) is fitted at the timestep its stability check asks for, then at the plant's step where its
@@ -111,7 +111,7 @@ from ..identify.windows import Predictor
 from .clock import Phases, ScreenClock
 from .features import operating_conditions, reversal_proximity
 from .floor import EXPLAINED_RATIO, WINDOWING_TRUST, Floor, judged, noise_floor
-from .gear_law import law_ratio
+from .gear_law import law_ratio, law_site
 from .locate import REVERSAL_WINDOW_S, locate, located_conditions
 
 MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
@@ -954,7 +954,7 @@ def _by_gear_law(predictor: Predictor, ref: FitResult, screened: dict[str, tuple
     the hardening cubic's held-out cost 0.218 at p 0.016, the play's 0.270 at p 0.16, the
     play's misfit of the law 0.008 of the linear gear's, the cubic's 0.163)."""
     law = choice.consistency.get("gear_law_ratio")
-    if choice.failed or law is None:
+    if choice.failed or law is None or EFFECTS[parts(choice.best)[-1]].site != "gear":
         return choice
     ratios = {}
     for key, (cost, result) in screened.items():
@@ -994,7 +994,7 @@ def acceptance(predictor: Predictor, ref: FitResult, cand: FitResult, effect: st
     min_abs = options.floor_share * floor_cost
     small, immaterial = gain_shortfalls(ref.cost_test, cand.cost_test, options, floor_cost)
     inconsistent = consistency["p"] > max_p
-    law = law_ratio(predictor, ref.structure, cand.structure, EFFECTS[effect].site)
+    law = law_ratio(predictor, ref.structure, cand.structure, law_site(EFFECTS[effect]))
     if law is not None:
         consistency["gear_law_ratio"] = law
     failed = [test for test, fails in (

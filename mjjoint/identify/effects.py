@@ -376,7 +376,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("torque_skew", "the torque sensor read late (its filter's lag or a timing skew)",
            (Param("torque_skew.lag", 0.0, -0.01, 0.01, log=False, unit="s"),),
            lambda m, v: m, site="sensor", senses=("tau",), evidence=("lag",), plot="time_shift",
-           measure=lambda p, v, rate: {**p, "tau": shift_late(p["tau"], v["torque_skew.lag"] * rate)}),
+           measure=lambda p, v, rate: {**p, "tau": shift_late(p["tau"], v["torque_skew.lag"] * rate)},
+           on_request=True),
     # Gain before offset (effects apply in catalogue order): tau_measured = gain tau + offset.
     Effect("torque_gain", "gain error of the torque sensor (measured tau only)",
            (Param("torque_gain.gain", 1.0, 0.2, 5.0, unit=""),),
@@ -393,8 +394,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
 )}
 
 # Effects on what the sensors report: screened only where the fit scores a signal they change
-# (``Effect.senses``); the torque sensor's only when asked, since its gain or offset can stand
-# in for any physics that moves tau.
+# (``Effect.senses``); the torque sensor's only when asked, since its gain, offset or lag can
+# stand in for any physics that moves tau (its lag for a current loop's).
 SENSOR_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.site == "sensor")
 # The effects screened only when asked (``Effect.on_request``).
 ON_REQUEST = tuple(e.name for e in EFFECTS.values() if e.on_request)
