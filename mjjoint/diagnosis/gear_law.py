@@ -44,7 +44,7 @@ def law_costs(predictor: Predictor, structure: Structure, windows: np.ndarray) -
 def law_site(effect) -> str:
     """The site ``law_ratio`` judges an ``Effect`` at: "gear" for an effect at the gear (it
     changes the law and nothing else) and for one of the torque sensor's (``Effect.senses`` tau
-    alone: it changes what the recording reports of the law's torque, a lag of the cell the
+    alone: it changes what the recording reports of the law's torque; a late cell puts the
     recorded torque behind the recorded deflection); its own site otherwise."""
     torque_sensor = effect.site == "sensor" and set(effect.senses) <= {"tau"}
     return "gear" if torque_sensor else effect.site
