@@ -9,7 +9,7 @@ import pytest
 import mjjoint
 from mjjoint.assets import ArmSpec
 from mjjoint.diagnosis.loop import candidates_for
-from mjjoint.identify.effects import SENSOR_EFFECTS, shift_late
+from mjjoint.identify.effects import EFFECTS, shift_late
 from mjjoint.identify.fit import fit
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
@@ -18,6 +18,7 @@ from mjjoint.recordings import Recording
 PHYSICS = ("coulomb_friction", "viscous_friction", "linear_stiffness", "transmission_damping")
 TRUTH = {"coulomb_friction.fc": 0.05, "viscous_friction.sigma": 2e-4, "linear_stiffness.k1": 1e4,
          "transmission_damping.d": 1.0}
+SENSOR_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.site == "sensor")
 INJECTED = {"sensor_skew.lag": 2e-3, "torque_gain.gain": 1.2, "torque_offset.offset": 3.0}
 
 

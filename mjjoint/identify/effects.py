@@ -393,11 +393,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     *(e for module in MODULES for e in getattr(module, "EFFECTS", ())),
 )}
 
-# Effects on what the sensors report: screened only where the fit scores a signal they change
-# (``Effect.senses``); the torque sensor's only when asked, since its gain, offset or lag can
-# stand in for any physics that moves tau (its lag for a current loop's).
-SENSOR_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.site == "sensor")
-# The effects screened only when asked (``Effect.on_request``).
+# The effects screened only when asked (``Effect.on_request``): among them the torque sensor's,
+# whose gain, offset or lag can stand in for any physics that moves tau (its lag for a current
+# loop's). The sensors' others are screened where the fit scores a signal they change
+# (``Effect.senses``, ``diagnosis.loop.candidates_for``).
 ON_REQUEST = tuple(e.name for e in EFFECTS.values() if e.on_request)
 # The generic forms: screened only where no catalogued effect explains a located residual.
 GENERIC = tuple(e.name for e in EFFECTS.values() if e.generic)
