@@ -189,3 +189,21 @@ def test_a_mismatch_that_remains_names_the_candidate_the_tests_refused():
     assert "a mismatch remains" in text and only_rank in text
     explained = dataclasses.replace(floor, measurement={"q": 0.34})
     assert only_rank not in _verdict([step], fit, fit, explained, True, {}, only_rank, {})
+
+
+def test_a_sign_of_the_recording_no_named_effect_explains_is_stated():
+    """The recording's own signs (``loop.recorded_signs``: the gear law giving energy back) are
+    part of the verdict until an effect that declares them is named."""
+    from types import SimpleNamespace
+
+    from mjjoint.diagnosis.floor import Floor
+    from mjjoint.diagnosis.loop import Step, _verdict
+    fit = SimpleNamespace(nrmse_test={"tau": 0.2}, cost_test=0.083, structure=None)
+    floor = Floor(noise={"tau": 0.0}, quantum={"tau": 0.0}, measurement={"tau": 0.01}, twin={}, signals=("tau",))
+    signs = {"energy_returned": "the recorded gear law gives energy back (...)"}
+    plain = Step(effect="backlash", evidence=[], where={}, parameters={}, fit_before={}, fit_after={}, gain=0.39,
+                 screened={})
+    late = dataclasses.replace(plain, effect="torque_skew")
+    assert signs["energy_returned"] in _verdict([], fit, fit, floor, False, {}, "", {}, signs=signs)
+    assert signs["energy_returned"] in _verdict([plain], fit, fit, floor, False, {}, "", {}, signs=signs)
+    assert "gives energy back" not in _verdict([late], fit, fit, floor, False, {}, "", {}, signs=signs)

@@ -68,6 +68,11 @@ def test_the_diagnosis_screens_the_link_skew_by_default_and_the_torque_sensor_on
     assert "sensor_skew" in candidates_for(s, scored=("q", "delta"))
     # asked for, the sensor effects are screened whatever the fit scores
     assert set(candidates_for(s, SENSOR_EFFECTS, scored=("q",))) == set(SENSOR_EFFECTS)
+    # a recording whose gear law gives energy back (``gear_law.law_energy``) opens the screen to
+    # the torque cell's lag, and to no other effect of the torque sensor
+    signed = set(candidates_for(s, shown=("energy_returned",)))
+    assert signed - set(candidates_for(s)) == {"torque_skew"}
+    assert "torque_skew" not in candidates_for(s, ("sensor_skew",), shown=("energy_returned",))
 
 
 def test_a_sensor_effect_must_name_the_signals_it_senses():

@@ -8,15 +8,29 @@ recorded torque from the recorded deflection better than the model without it. A
 whose simulated gain comes from standing in for physics elsewhere (a rod's damping taken up as
 the gear's hysteresis) fits the measured law worse, and is refused (``loop.acceptance``); and
 between gear effects the law decides which one the gear has (``loop._by_gear_law``).
+
+The same pair of columns carries a sign no model is needed to read: a passive gear takes energy
+from the motion, so the recorded torque's work along the recorded deflection, the spring's
+stored share taken off, is positive over any stretch (``law_energy``). Where it is negative, the
+recorded torque runs behind the recorded deflection: a torque cell's filter or a clock skew
+between the sensors, which no physics of the joint produces.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+from scipy.stats import wilcoxon
 
 from ..coupling.kernels import hysteresis_history
 from ..coupling.layout import pack
 from ..identify.structure import Structure
-from ..identify.windows import Predictor
+from ..identify.windows import Measured, Predictor
+
+# The recording's sign (``Effect.evidence``) that the gear law gives energy back.
+ENERGY_RETURNED = "energy_returned"
+ENERGY_STRETCH = 0.25  # [s] the stretches the work is summed over, tested for their sign
+ENERGY_P = 1e-3        # the signed-rank level below which the law is taken to give energy back
 
 
 def gear_torque(joint, delta: np.ndarray, rate: np.ndarray, at: np.ndarray, segments) -> np.ndarray:
@@ -62,3 +76,51 @@ def law_ratio(predictor: Predictor, before: Structure, after: Structure, effect_
         return None
     w = predictor.test
     return float(law_costs(predictor, after, w).sum() / law_costs(predictor, before, w).sum())
+
+
+@dataclass(frozen=True)
+class LawEnergy:
+    """The work of the recorded gear torque along the recorded deflection (``law_energy``)."""
+
+    damping: float   # [N m s/rad] that work over the integral of the deflection rate squared
+    stiffness: float  # [N m/rad] the law's secant stiffness, whose stored energy is taken off
+    returned: int    # stretches that gave energy back
+    stretches: int
+    p: float         # one-sided signed-rank p that the stretches' works are negative
+
+    @property
+    def shown(self) -> bool:
+        return self.p <= ENERGY_P
+
+    def describe(self) -> str:
+        return (f"the recorded gear law gives energy back ({self.returned} of {self.stretches} stretches of "
+                f"{ENERGY_STRETCH:g} s, signed-rank p {self.p:.2g}; {self.damping:.3g} N m s/rad of damping "
+                f"along the deflection), which no passive gear does: the torque is read late against the "
+                f"deflection (a torque cell's filter, a clock skew)")
+
+
+def law_energy(m: Measured) -> LawEnergy | None:
+    """The recorded torque's work along the recorded deflection, per stretch of ENERGY_STRETCH
+    within each stacked recording, less what the law's best linear spring stores between the
+    stretch's ends; None without a torque sensor and a link encoder or with too few stretches.
+    The trapezoidal sum telescopes the spring's work exactly and leaves the encoders'
+    quantisation and independent sensor noise without bias."""
+    delta = m.measured_delta
+    if m.tau is None or delta is None:
+        return None
+    k, c = np.polyfit(delta, m.tau, 1)
+    sign = 1.0 if k >= 0 else -1.0  # a torque column of the opposite sense
+    tau, k, c = sign * m.tau, sign * k, sign * c
+    n = max(int(round(ENERGY_STRETCH * m.rate)), 2)
+    works, rates = [], []
+    for a, b in m.segments:
+        for s in range(a, b - n + 1, n):
+            d, t = delta[s:s + n], tau[s:s + n]
+            work = np.sum(0.5 * (t[1:] + t[:-1]) * np.diff(d))
+            works.append(work - 0.5 * k * (d[-1] ** 2 - d[0] ** 2) - c * (d[-1] - d[0]))
+            rates.append(np.sum(np.diff(d) ** 2) * m.rate)
+    works = np.asarray(works)
+    if len(works) < 10 or not np.any(works != 0):
+        return None
+    return LawEnergy(damping=float(works.sum() / sum(rates)), stiffness=float(k), returned=int(np.sum(works < 0)),
+                     stretches=len(works), p=float(wilcoxon(works, alternative="less").pvalue))

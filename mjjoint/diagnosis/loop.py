@@ -111,7 +111,7 @@ from ..identify.windows import Predictor
 from .clock import Phases, ScreenClock
 from .features import operating_conditions, reversal_proximity
 from .floor import EXPLAINED_RATIO, WINDOWING_TRUST, Floor, judged, noise_floor
-from .gear_law import law_ratio, law_site
+from .gear_law import ENERGY_RETURNED, law_energy, law_ratio, law_site
 from .locate import REVERSAL_WINDOW_S, locate, located_conditions
 
 MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
@@ -190,6 +190,7 @@ class Diagnosis:
     unresolved: dict[str, float] = field(default_factory=dict)  # candidate -> its screen's held-out cost / the reference's
     revisions: list = field(default_factory=list)  # diagnosis.revise.Revision: swaps, removals, stand-ins refused
     phases: dict = field(default_factory=dict)  # where the rollouts and time went (``clock.Phases.as_dict``)
+    signs: dict = field(default_factory=dict)  # the recording's own signs (``recorded_signs``): name -> description
 
     @property
     def stand_in_effects(self) -> dict[str, str]:
@@ -224,6 +225,7 @@ class Diagnosis:
                 "unresolved_screens": self.unresolved,
                 "revisions": [r.as_dict() for r in self.revisions],
                 "stand_in_effects": self.stand_in_effects,
+                "recorded_signs": self.signs,
                 "verdict": self.verdict,
                 # Rollouts only: diagnosis.json holds no wall times (run.json does), so that a rerun
                 # gives the same file; the progress line has the seconds per phase.
@@ -280,10 +282,12 @@ def _n_params(key: str) -> int:
     return sum(len(EFFECTS[e].params) for e in parts(key))
 
 
-def _evidence(key: str, where: dict) -> list[str]:
+def _evidence(key: str, where: dict, signs: dict[str, str] | None = None) -> list[str]:
+    """The located conditions and the recording's ``signs`` (``recorded_signs``) that the effects
+    of ``key`` declare as their evidence."""
     wanted = {c for e in parts(key) for c in EFFECTS[e].evidence}
     return [f"{sig}: {c['description']}" for sig, c in located_conditions(where)
-            if c["significant"] and c["name"] in wanted]
+            if c["significant"] and c["name"] in wanted] + [d for sign, d in (signs or {}).items() if sign in wanted]
 
 
 def _candidate_variants(effect: str, where: dict, structure: Structure) -> list[tuple[dict, dict]]:
@@ -315,22 +319,32 @@ def screened_params(key: str, structure: Structure) -> list[str]:
     return names
 
 
-def default_candidates(structure: Structure) -> tuple[str, ...]:
-    """The effects screened unless the options name them: every one the plant can have but those
-    screened on request (``effects.ON_REQUEST``: the sensors', the exact sign) and the generic forms."""
-    return tuple(e for e in plant_effects(structure.nominal) if e not in ON_REQUEST and e not in GENERIC)
+def default_candidates(structure: Structure, shown=()) -> tuple[str, ...]:
+    """The effects screened unless the options name them: every one the plant can have but the
+    generic forms and those screened on request (``effects.ON_REQUEST``: the sensors', the exact
+    sign), unless the recording ``shown`` a sign of one (``Effect.evidence``, ``recorded_signs``)."""
+    return tuple(e for e in plant_effects(structure.nominal) if e not in GENERIC
+                 and (e not in ON_REQUEST or set(EFFECTS[e].evidence) & set(shown)))
 
 
-def candidates_for(structure: Structure, allowed=None, scored=None) -> list[str]:
+def recorded_signs(predictor: Predictor) -> dict[str, str]:
+    """{sign: description} of the signs the recording itself shows, whatever the model: the gear
+    law giving energy back (``gear_law.law_energy``)."""
+    energy = law_energy(predictor.m)
+    return {ENERGY_RETURNED: energy.describe()} if energy is not None and energy.shown else {}
+
+
+def candidates_for(structure: Structure, allowed=None, scored=None, shown=()) -> list[str]:
     """The effects to screen on ``structure``: each one it lacks, bundled with the prerequisites
-    it lacks too (module doc). By default (no ``allowed`` list), where the signals the fit
-    ``scored`` are given, no sensor effect that changes none of them: a skew of the link encoder
-    on a fit of the motor angle would act through the windows' start states alone, a stand-in."""
+    it lacks too (module doc). By default (no ``allowed`` list), those of ``default_candidates``
+    (the recording's signs ``shown``) but, where the signals the fit ``scored`` are given, any
+    sensor effect that changes none of them: a skew of the link encoder on a fit of the motor
+    angle would act through the windows' start states alone, a stand-in."""
     possible = plant_effects(structure.nominal)
     if allowed is not None:
         names = [e for e in allowed if e in possible]
     else:
-        names = [e for e in default_candidates(structure) if scored is None or EFFECTS[e].site != "sensor"
+        names = [e for e in default_candidates(structure, shown) if scored is None or EFFECTS[e].site != "sensor"
                  or set(EFFECTS[e].senses) & set(scored)]
     keys = (bundle(e, structure.effects, possible) for e in names if e not in structure.effects)
     return [k for k in keys if k is not None]
@@ -368,6 +382,10 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     phases = Phases(lambda: predictor.rollouts)
     with phases("base fit"):
         current = _base_fit(predictor, base, options, say, iterations)
+    signs = recorded_signs(predictor)
+    for text in signs.values():
+        say(f"{text}; screened with the catalogue: "
+            + ", ".join(e for e in ON_REQUEST if set(EFFECTS[e].evidence) & set(signs)))
     initial = current
     final = None  # the robust final estimate (step 5), once made within the loop
     history = [current]
@@ -387,7 +405,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         clock.round = k
         with phases("noise floor"):
             floor_cost = noise_floor(predictor, current.structure).cost()
-        ref, screened, rest = _screen(predictor, current, where, search, say, clock, unstable, stepped)
+        ref, screened, rest = _screen(predictor, current, where, search, say, clock, unstable, stepped, signs)
         if not screened:
             break
         with phases("acceptance tests"):
@@ -395,7 +413,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         if choice.only_inconsistent and options.free_all:
             say(f"  best candidate {choice.best} fails only the rank test ({choice.failed[0]}); screening "
                 "again with every parameter free, from the model refitted")
-            ref, screened, rest = _screen(predictor, current, where, search, say, clock, unstable, stepped,
+            ref, screened, rest = _screen(predictor, current, where, search, say, clock, unstable, stepped, signs,
                                           free_all=True)
             if ref.cost_test < current.cost_test:  # the same structure, fitted further
                 current = history[-1] = ref
@@ -465,7 +483,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                     f"{refit.cost_test:.4g}: kept")
                 refit = robust
         added = [Step(
-            effect=parts(key)[-1], prerequisites=list(parts(key)[:-1]), evidence=_evidence(key, where), where=where,
+            effect=parts(key)[-1], prerequisites=list(parts(key)[:-1]), evidence=_evidence(key, where, signs), where=where,
             parameters={p.name: refit.structure.values[p.name] for e in parts(key) for p in EFFECTS[e].params},
             fit_before=current.nrmse_test, fit_after=refit.nrmse_test,
             gain=1.0 - refit.cost_test / current.cost_test,
@@ -495,7 +513,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 added, refusals = [step], [refusal]
             if refusals:
                 revisions += refusals
-                allowed = options.candidates or default_candidates(current.structure)
+                allowed = options.candidates or default_candidates(current.structure, signs)
                 search = dataclasses.replace(options, candidates=tuple(e for e in allowed
                                                                        if e not in refused(revisions)))
             if refusals and alone is None:
@@ -547,11 +565,12 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     bounds = stand_ins(current)
     if explained:
         unresolved = {}
-    verdict = _verdict(steps, initial, current, floor, explained, final_where, rejected, bounds, unresolved, revisions)
+    verdict = _verdict(steps, initial, current, floor, explained, final_where, rejected, bounds, unresolved, revisions,
+                       signs)
     say(f"spent: {phases.line()}")
     return Diagnosis(steps, initial, current, final_where, verdict,
                      predictor.rollouts - roll0, time.perf_counter() - t_start, history,
-                     floor, explained, bounds, unstable, unresolved, revisions, phases.as_dict())
+                     floor, explained, bounds, unstable, unresolved, revisions, phases.as_dict(), signs)
 
 
 def refused(revisions) -> tuple[str, ...]:
@@ -586,9 +605,10 @@ def unresolved_screens(screened: dict[str, tuple[float, FitResult]], ref_cost: f
 
 def _verdict(steps: list[Step], initial: FitResult, final: FitResult, floor: Floor, explained: bool,
              where: dict, rejected: str, stand_ins: dict[str, str], unresolved: dict[str, float] | None = None,
-             revisions=()) -> str:
+             revisions=(), signs=None) -> str:
     """One of the four verdicts (module doc), in one paragraph; ``revisions`` (``revise.Revision``):
-    the swaps and removals that revised the named effects, and the effects refused as stand-ins."""
+    the swaps and removals that revised the named effects, and the effects refused as stand-ins;
+    ``signs``: the recording's own (``recorded_signs``), stated where no named effect explains them."""
     found = {e for s in steps for e in s.effects}
 
     def rivals(step: Step) -> str:  # rivals found later are no longer alternatives
@@ -621,6 +641,9 @@ def _verdict(steps: list[Step], initial: FitResult, final: FitResult, floor: Flo
     if stand_ins:
         text += ("; on a bound, stand-ins rather than estimates: "
                  + ", ".join(f"{k} = {final.structure.values[k]:.4g} ({v})" for k, v in stand_ins.items()))
+    for sign, description in (signs or {}).items():
+        if not any(sign in EFFECTS[e].evidence for e in found):
+            text += f"; unexplained by the model, {description}"
     return text
 
 
@@ -688,13 +711,14 @@ CONTINUE_MAX = 3
 
 
 def _screen(predictor: Predictor, current: FitResult, where: dict, options: DiagnoseOptions, say,
-            clock: ScreenClock, unstable: dict[str, str], stepped: set[str], free_all: bool = False
+            clock: ScreenClock, unstable: dict[str, str], stepped: set[str], signs=(), free_all: bool = False
             ) -> tuple[FitResult, dict[str, tuple[float, FitResult]], dict[str, float]]:
     """(the fit candidates are held against, {effect: (held-out cost, fit)} of the screens
     finished over all training windows, {effect: held-out cost} of those left on the subset) of
     one screening.
 
-    Held stand-ins (default): each candidate frees ``screened_params`` and is held against the
+    ``signs``: the recording's (``recorded_signs``), which open the screen to the effects on
+    request that declare them. Held stand-ins (default): each candidate frees ``screened_params`` and is held against the
     current fit. ``free_all``: the current structure is first refitted with every parameter
     free (``fit_iter`` iterations more: a fit that had not converged would otherwise credit any
     flexible candidate with the rest of its descent), and each candidate frees every parameter
@@ -710,7 +734,7 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         with clock.phases("screens, reference refitted"):
             ref = fit(predictor, current.structure, max_iter=options.fit_iter)
         say(f"  reference, the model refitted: held-out cost {current.cost_test:.4g} -> {ref.cost_test:.4g}")
-    trials = [(name, values, settings) for name in candidates_for(ref.structure, options.candidates, predictor.signals)
+    trials = [(name, values, settings) for name in candidates_for(ref.structure, options.candidates, predictor.signals, signs)
               for values, settings in _candidate_variants(parts(name)[-1], where, ref.structure)]
     say(f"round {clock.round} of {clock.rounds}: screening {len(trials)} candidate fits"
         + (" with every parameter free" if free_all else "") + ", first on a subset of the windows")

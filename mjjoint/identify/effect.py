@@ -86,7 +86,9 @@ class Effect:
     # (windows x samples arrays by name), given the values and the sample rate.
     measure: Callable[[dict, dict[str, float], float], dict] | None = None
     senses: tuple[str, ...] = ()       # the measured signals ``measure`` changes
-    evidence: tuple[str, ...] = ()     # located conditions (diagnosis.locate) it would explain
+    # Located conditions (diagnosis.locate) it would explain, and signs of the recording itself
+    # (diagnosis.loop.recorded_signs) that make an effect screened on request a default candidate.
+    evidence: tuple[str, ...] = ()
     acts_under: str | None = None      # the one condition it acts mainly under, rank-tested there too
     plot: str = ""                     # its evidence figure (report.evidence.PLOTS)
     direct_drive: bool = False         # whether a direct drive (no gear, no output side) can have it

@@ -375,7 +375,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            lambda m, v: m, site="sensor", measure=_skewed, senses=("theta", "delta"), plot="time_shift"),
     Effect("torque_skew", "the torque sensor read late (its filter's lag or a timing skew)",
            (Param("torque_skew.lag", 0.0, -0.01, 0.01, log=False, unit="s"),),
-           lambda m, v: m, site="sensor", senses=("tau",), evidence=("lag",), plot="time_shift",
+           lambda m, v: m, site="sensor", senses=("tau",), evidence=("lag", "energy_returned"), plot="time_shift",
            measure=lambda p, v, rate: {**p, "tau": shift_late(p["tau"], v["torque_skew.lag"] * rate)},
            on_request=True),
     # Gain before offset (effects apply in catalogue order): tau_measured = gain tau + offset.
@@ -395,8 +395,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
 
 # The effects screened only when asked (``Effect.on_request``): among them the torque sensor's,
 # whose gain, offset or lag can stand in for any physics that moves tau (its lag for a current
-# loop's). The sensors' others are screened where the fit scores a signal they change
-# (``Effect.senses``, ``diagnosis.loop.candidates_for``).
+# loop's), unless the recording shows a sign of one no physics gives (``Effect.evidence``: the
+# gear law giving energy back, ``diagnosis.gear_law.law_energy``). The sensors' others are
+# screened where the fit scores a signal they change (``Effect.senses``,
+# ``diagnosis.loop.candidates_for``).
 ON_REQUEST = tuple(e.name for e in EFFECTS.values() if e.on_request)
 # The generic forms: screened only where no catalogued effect explains a located residual.
 GENERIC = tuple(e.name for e in EFFECTS.values() if e.generic)
