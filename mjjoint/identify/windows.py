@@ -867,22 +867,31 @@ class Predictor:
         return m.t[0] + period * np.arange(len(cum)), cum
 
     def _controls(self, model, i0: np.ndarray, n: int, delay: float, ji) -> np.ndarray:
-        """Per-step controls of ``n``-sample runs from samples ``i0``: the zero-order-held input
-        averaged over [t - d - h/2, t - d + h/2], the half steps a step's impulse stands for
-        (``sim.held_controls``, which this equals for d = 0).
-
-        For d > 0 it is the torque a delayed hold delivers, continuous in d so the delay can be
-        fitted by gradients. Before its recording's first sample (the start of the record or a
-        join) the input is zero.
+        """Per-step controls of ``n``-sample runs from samples ``i0``: at each step the
+        zero-order-held input averaged over [t - h/2, t + h/2], the half steps a step's impulse
+        stands for (``sim.held_controls``), read ``delay`` late as MuJoCo's native actuator delay
+        reads them (``assets.builder.set_input``): the history of the steps' controls, linearly
+        interpolated between the steps at t - d. The model the windows predict is then the MJCF a
+        simulation runs, whatever d is against the step; d stays continuous, so it is fitted by
+        gradients. Before its recording's first sample (the start of the record or a join) the
+        input is zero.
         """
         sub = self._substeps(model)
         h = model.opt.timestep
         m = self.m
         knots, cum = self._held_input
-        tk = m.t[i0][:, None] + h * np.arange((n - 1) * sub)[None, :] - delay - 0.5 * h
         # A delayed window at a join would otherwise take the previous recording's input.
         begin = m.t[_segment_first(i0, m.joins)][:, None]
-        u = (np.interp(np.maximum(tk + h, begin), knots, cum) - np.interp(np.maximum(tk, begin), knots, cum)) / h
+
+        def held(lo):  # the control of the step whose half steps start at lo
+            return (np.interp(np.maximum(lo + h, begin), knots, cum) - np.interp(np.maximum(lo, begin), knots, cum)) / h
+        lo = m.t[i0][:, None] + h * np.arange((n - 1) * sub)[None, :] - delay - 0.5 * h
+        if delay > 0:
+            step = m.t[0] - 0.5 * h + h * np.floor((lo - m.t[0] + 0.5 * h) / h)  # the steps lie on the samples' grid
+            f = (lo - step) / h
+            u = (1.0 - f) * held(step) + f * held(step + h)
+        else:
+            u = held(lo)
         ctrl = np.zeros((len(i0), (n - 1) * sub, model.nu))
         ctrl[:, :, ji.actuator] = u / ji.k_m
         return ctrl
