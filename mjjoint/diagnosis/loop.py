@@ -3,8 +3,10 @@
 Each round:
 1. the current structure is fitted to the training windows (``identify.fit``);
 2. its prediction residual is located (``locate``): which signal, when, under which condition;
-3. every effect not yet in the model (whose prerequisites are) is screened by fitting its own
-   parameters and those of the effects it refines, the rest held at their fitted values, on
+3. every effect not yet in the model (whose prerequisites are; those screened on request only
+   where the options name them or the recording shows their sign: ``recorded_signs``) is
+   screened by fitting its own parameters and those of the effects it refines, the rest held
+   at their fitted values, on
    the training windows; if the best one's gain is material but inconsistent over windows
    (only the rank test fails), once more with every parameter free, from and against the
    current structure refitted with every parameter free, the rank test at half the level
