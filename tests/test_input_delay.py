@@ -51,8 +51,9 @@ def test_a_delay_longer_than_the_history_is_refused_with_its_range():
 def test_the_windows_read_the_input_as_the_native_delay_delivers_it(delay):
     """A window's controls, from any sample, are the controls MuJoCo's delay hands on from the
     held input (``sim.held_controls``), to the rounding of the input's running integral the
-    windows read it from (1e-10 of a 0.1 N m input), with d on a step or between two: a read of the held input itself shifted by d smooths it differently between the steps
-    (up to 0.09 of a 0.1 N m rms input; the true delay fitted 1.5 us short at 2.25 ms)."""
+    windows read it from (1e-10 of a 0.1 N m input), with d on a step or between two: a read of
+    the held input itself shifted by d smooths it differently between the steps (up to 0.09 of a
+    0.1 N m rms input; the true delay fitted 1.5 us short at 2.25 ms)."""
     arm = ArmSpec(segments=0, input_delay=delay)
     u = Multisine(amplitude=0.1, f_min=1.0, f_max=200.0, seed=2).sample(1000.0, 3.0)
     trace = simulate(u, arm=ArmSpec(segments=0), joint=JointParams())

@@ -325,8 +325,15 @@ def default_candidates(structure: Structure, shown=()) -> tuple[str, ...]:
     """The effects screened unless the options name them: every one the plant can have but the
     generic forms and those screened on request (``effects.ON_REQUEST``: the sensors', the exact
     sign), unless the recording ``shown`` a sign of one (``Effect.evidence``, ``recorded_signs``)."""
+    opened = opened_by(shown)
     return tuple(e for e in plant_effects(structure.nominal) if e not in GENERIC
-                 and (e not in ON_REQUEST or set(EFFECTS[e].evidence) & set(shown)))
+                 and (e not in ON_REQUEST or e in opened))
+
+
+def opened_by(shown) -> tuple[str, ...]:
+    """The effects screened on request that the recording's signs ``shown`` make default
+    candidates: those that declare one of them as evidence."""
+    return tuple(e for e in ON_REQUEST if set(EFFECTS[e].evidence) & set(shown))
 
 
 def recorded_signs(predictor: Predictor) -> dict[str, str]:
@@ -386,8 +393,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         current = _base_fit(predictor, base, options, say, iterations)
     signs = recorded_signs(predictor)
     for text in signs.values():
-        say(f"{text}; screened with the catalogue: "
-            + ", ".join(e for e in ON_REQUEST if set(EFFECTS[e].evidence) & set(signs)))
+        say(f"{text}; screened with the catalogue: {', '.join(opened_by(signs))}")
     initial = current
     final = None  # the robust final estimate (step 5), once made within the loop
     history = [current]
@@ -485,7 +491,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                     f"{refit.cost_test:.4g}: kept")
                 refit = robust
         added = [Step(
-            effect=parts(key)[-1], prerequisites=list(parts(key)[:-1]), evidence=_evidence(key, where, signs), where=where,
+            effect=parts(key)[-1], prerequisites=list(parts(key)[:-1]), evidence=_evidence(key, where, signs),
+            where=where,
             parameters={p.name: refit.structure.values[p.name] for e in parts(key) for p in EFFECTS[e].params},
             fit_before=current.nrmse_test, fit_after=refit.nrmse_test,
             gain=1.0 - refit.cost_test / current.cost_test,
@@ -720,8 +727,8 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     one screening.
 
     ``signs``: the recording's (``recorded_signs``), which open the screen to the effects on
-    request that declare them. Held stand-ins (default): each candidate frees ``screened_params`` and is held against the
-    current fit. ``free_all``: the current structure is first refitted with every parameter
+    request that declare them (``opened_by``). Held stand-ins (default): each candidate frees
+    ``screened_params`` and is held against the current fit. ``free_all``: the current structure is first refitted with every parameter
     free (``fit_iter`` iterations more: a fit that had not converged would otherwise credit any
     flexible candidate with the rest of its descent), and each candidate frees every parameter
     from there and is held against that refit (module doc). A screen whose prediction is
@@ -736,7 +743,8 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         with clock.phases("screens, reference refitted"):
             ref = fit(predictor, current.structure, max_iter=options.fit_iter)
         say(f"  reference, the model refitted: held-out cost {current.cost_test:.4g} -> {ref.cost_test:.4g}")
-    trials = [(name, values, settings) for name in candidates_for(ref.structure, options.candidates, predictor.signals, signs)
+    names = candidates_for(ref.structure, options.candidates, predictor.signals, signs)
+    trials = [(name, values, settings) for name in names
               for values, settings in _candidate_variants(parts(name)[-1], where, ref.structure)]
     say(f"round {clock.round} of {clock.rounds}: screening {len(trials)} candidate fits"
         + (" with every parameter free" if free_all else "") + ", first on a subset of the windows")
