@@ -370,9 +370,12 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            # a constant force reads as one sign of friction half the time, and is seen against velocity
            evidence=("coulomb",), plot="motor_velocity", direct_drive=True,
            read=lambda m: _arm_value(m, "input_offset", "input_offset.offset")),
+    # A late link encoder reads as a lagging gear: a base fit without the skew bends the gear's
+    # stiffness and damping toward it, and a screen holding them misses the skew.
     Effect("sensor_skew", "the link encoder read late against the motor encoder and input (time skew)",
            (Param("sensor_skew.lag", 0.0, -0.01, 0.01, log=False, unit="s"),),
-           lambda m, v: m, site="sensor", measure=_skewed, senses=("theta", "delta"), plot="time_shift"),
+           lambda m, v: m, site="sensor", measure=_skewed, senses=("theta", "delta"), plot="time_shift",
+           stand_ins=("linear_stiffness", "transmission_damping")),
     Effect("torque_skew", "the torque sensor read late (its filter's lag or a timing skew)",
            (Param("torque_skew.lag", 0.0, -0.01, 0.01, log=False, unit="s"),),
            lambda m, v: m, site="sensor", senses=("tau",), evidence=("lag", "energy_returned"), plot="time_shift",
