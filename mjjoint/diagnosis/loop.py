@@ -728,8 +728,9 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
 
     ``signs``: the recording's (``recorded_signs``), which open the screen to the effects on
     request that declare them (``opened_by``). Held stand-ins (default): each candidate frees
-    ``screened_params`` and is held against the current fit. ``free_all``: the current structure is first refitted with every parameter
-    free (``fit_iter`` iterations more: a fit that had not converged would otherwise credit any
+    ``screened_params`` and is held against the current fit. ``free_all``: the current structure
+    is first refitted with every parameter free (``fit_iter`` iterations more: a fit that had
+    not converged would otherwise credit any
     flexible candidate with the rest of its descent), and each candidate frees every parameter
     from there and is held against that refit (module doc). A screen whose prediction is
     unstable is screened again at the timestep its stability check asks for, and why it was goes
