@@ -40,6 +40,10 @@ def max_delay(timestep: float) -> float:
     return delay_samples(timestep) * timestep
 
 
+# The longest first-order input lag [s] a plant may have: a current loop of 1.6 Hz bandwidth.
+MAX_LAG_S = 0.1
+
+
 def scene_path(name: str = "scene.xml") -> Path:
     path = ASSETS_DIR / name
     if not path.exists():
@@ -64,6 +68,7 @@ class ArmSpec:
     max_current: float = 20.0       # [A] amplifier limit, the actuator's ctrlrange (5 N m at k_m)
     gravity: float = 9.81           # [m/s^2]; 0 (or False) switches gravity off
     input_delay: float = 0.0        # [s] current-to-torque delay (native actuator delay)
+    input_lag: float = 0.0          # [s] time constant of the current loop's first-order lag; 0 none
     input_offset: float = 0.0       # [N m] constant motor torque added to u (amplifier offset)
     timestep: float = 5e-4          # [s]
 
@@ -83,6 +88,7 @@ class ArmSpec:
         check("timestep", self.timestep, 1e-6, 0.01)
         check("gravity", self.gravity, 0.0, 100.0)
         check("input_delay", self.input_delay, 0.0, max_delay(self.timestep))
+        check("input_lag", self.input_lag, 0.0, MAX_LAG_S)
         check("input_offset", self.input_offset, -1e3, 1e3)
 
     @property
@@ -111,14 +117,33 @@ class ArmSpec:
         return "mass.tip" if self.tip_mass > 0 else "inertia.link"
 
 
-def set_input(act, k_m: float, offset: float, delay: float, timestep: float) -> None:
-    """Motor input u = k_m ctrl + offset, applied ``delay`` late (native actuator terms) in a
-    model stepped at ``timestep``.
+def lag_constant(lag: float, timestep: float) -> float:
+    """The ``filterexact`` time constant whose step is backward Euler's for a first-order ``lag``:
+    exp(-h / T) = lag / (lag + h)."""
+    return timestep / math.log1p(timestep / lag)
+
+
+def set_input(act, k_m: float, offset: float, delay: float, timestep: float, lag: float = 0.0) -> None:
+    """Motor input u = k_m ctrl + offset, applied ``delay`` late and, with ``lag`` > 0, through a
+    first-order lag of that time constant (native actuator terms) in a model stepped at
+    ``timestep``.
 
     The offset is an affine actuator bias in ctrl units (MuJoCo multiplies the actuator force,
-    gain ctrl + bias, by the gear k_m).
+    gain ctrl + bias, by the gear k_m). The lag is the actuator's activation and lags the
+    current, not the offset. The step's force is the activation at its end (``actearly``), so a
+    vanishing lag is the unlagged input, not one a step late; and the activation steps as
+    backward Euler does, a <- (lag a + h c) / (lag + h) (``filterexact`` with the time constant
+    ``lag_constant``), so that against the step's centred control it lags a slow command by
+    ``lag`` exactly where the exact step of ``lag`` itself would lag it by lag - h/2.
     """
     act.gear[0] = k_m
+    if lag > 0:
+        act.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
+        act.dynprm[0] = lag_constant(lag, timestep)
+        act.actearly = 1
+    else:
+        act.dyntype = mujoco.mjtDyn.mjDYN_NONE
+        act.actearly = 0
     if offset != 0.0:
         act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
         act.biasprm[0] = offset / k_m
@@ -177,7 +202,7 @@ def build_arm(arm: ArmSpec = ArmSpec(), joint: JointParams = JointParams(), *,
     rotor.inertia = [transverse, arm.motor_inertia, transverse]
     spec.body("hub").inertia = [arm.hub_inertia] * 3
     _rebuild_rod(spec, arm)
-    set_input(spec.actuator("current"), arm.k_m, arm.input_offset, arm.input_delay, arm.timestep)
+    set_input(spec.actuator("current"), arm.k_m, arm.input_offset, arm.input_delay, arm.timestep, arm.input_lag)
     spec.actuator("current").ctrlrange = [-arm.max_current, arm.max_current]
     # The home keyframe must match the (possibly new) number of joints.
     for key in spec.keys:

@@ -15,7 +15,7 @@ import numpy as np
 from ..coupling.plugin import PLUGIN_NAME, register
 from ..joint import GROUND, JointParams
 from ..params import check
-from .builder import max_delay, scene_path, set_input
+from .builder import MAX_LAG_S, max_delay, scene_path, set_input
 
 DRIVE_XML = "linear_drive.xml"
 JOINT_TYPES = {"slide": mujoco.mjtJoint.mjJNT_SLIDE, "hinge": mujoco.mjtJoint.mjJNT_HINGE}
@@ -39,6 +39,7 @@ class DriveSpec:
     ctrl_limit: float = 10.0         # [V] +-10 V amplifier input
     input_offset: float = 3.16       # [N] constant drive force (Janot et al.: offset -3.16 N)
     input_delay: float = 0.0         # [s]
+    input_lag: float = 0.0           # [s] first-order lag of the drive force (its current loop)
     timestep: float = 1e-3           # [s] the EMPS's 1 kHz
     force_scale: float = 100.0       # [N] EMPS: Fc ~ 20 N, peak drive force ~ 150 N
     speed_scale: float = 0.01        # [m/s] EMPS peaks near 0.2 m/s
@@ -53,6 +54,7 @@ class DriveSpec:
         check("input_offset", self.input_offset, -1e6, 1e6)
         check("timestep", self.timestep, 1e-6, 0.01)
         check("input_delay", self.input_delay, 0.0, max_delay(self.timestep))
+        check("input_lag", self.input_lag, 0.0, MAX_LAG_S)
         check("force_scale", self.force_scale, 0.0, lo_open=True)
         check("speed_scale", self.speed_scale, 0.0, lo_open=True)
         check("v_eps", self.v_eps, 0.0, lo_open=True)
@@ -92,7 +94,7 @@ def build_drive(drive: DriveSpec = DriveSpec(), joint: JointParams | None = None
         carriage.inertia = [drive.mass] * 3
     act = spec.actuator("force")
     act.ctrlrange = [-drive.ctrl_limit, drive.ctrl_limit]
-    set_input(act, drive.k_m, drive.input_offset, drive.input_delay, drive.timestep)
+    set_input(act, drive.k_m, drive.input_offset, drive.input_delay, drive.timestep, drive.input_lag)
     for key in spec.keys:
         key.qpos = np.zeros(1)
     return spec

@@ -53,6 +53,14 @@ def shipped_arm(h: float, joint: JointParams, u: np.ndarray) -> Trace:
     return Simulator(arm=ArmSpec(timestep=h), joint=joint, sample_rate=RATE).run(u)
 
 
+CURRENT_LAG = 3e-3  # [s] a current loop's time constant (``ArmSpec.input_lag``)
+
+
+def lagged_arm(h: float, joint: JointParams, u: np.ndarray) -> Trace:
+    """``shipped_arm`` behind a current loop's first-order lag, stepped at h."""
+    return Simulator(arm=ArmSpec(timestep=h, input_lag=CURRENT_LAG), joint=joint, sample_rate=RATE).run(u)
+
+
 @dataclass(frozen=True)
 class Case:
     """One model under one input: ``plant`` is ``free_rotor`` or ``shipped_arm``; ``torque`` the
@@ -77,6 +85,7 @@ def cases() -> list[Case]:
     step = np.where(t >= 0.1, 0.1, 0.0)
     impulse = Impulse().sample(RATE, 1.0)
     locked = JointParams(link_joint=GROUND)
+    linear = JointParams(friction=None, load_friction=None, transmission=Transmission(hysteresis=None, k3=0.0))
     return [
         # 1.25 Fs: above break-away, the rotor must slide whatever the step
         Case("free rotor, 2SEP, sine 1.25 Fs, 1 Hz", free_rotor, JointParams(), 1.25 * sine, "friction"),
@@ -105,8 +114,8 @@ def cases() -> list[Case]:
         Case("shipped arm, static map, 3 s down-chirp", shipped_arm, JointParams(friction=StaticFriction()), chirp,
              "tau"),
         # no friction anywhere, no hysteresis, a linear gear: the integrator's error on the linear joint
-        Case("shipped arm, linear joint without friction, 3 s down-chirp", shipped_arm,
-             JointParams(friction=None, load_friction=None, transmission=Transmission(hysteresis=None, k3=0.0)),
+        Case("shipped arm, linear joint without friction, 3 s down-chirp", shipped_arm, linear, chirp, "tau"),
+        Case("shipped arm, linear joint without friction, 3 ms current-loop lag, 3 s down-chirp", lagged_arm, linear,
              chirp, "tau"),
         # the bearing's sign regularised (it creeps instead of sticking): no link-side stick events
         Case("shipped arm, B = 0, regularised bearing, 3 s down-chirp", shipped_arm,

@@ -171,12 +171,15 @@ def _play_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
     return [({}, {})] + ([(dict(play), {})] if play else [])
 
 
-def _delay_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
-    """Started at the lag the residual's cross-correlation locates, inside the bound."""
-    lags = [c["params"].get("lag_ms") for c in conds if c["name"] == "lag" and c["significant"]]
-    if lags and lags[0] > 0:
-        return [({"input_delay.delay": min(lags[0] * 1e-3, 0.009)}, {})]
-    return [({}, {})]
+def _at_located_lag(param: str, cap: float):
+    """``Effect.variants`` of an input's time constant: started at the lag the residual's
+    cross-correlation locates (at most ``cap``, inside the bound)."""
+    def variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
+        lags = [c["params"].get("lag_ms") for c in conds if c["name"] == "lag" and c["significant"]]
+        if lags and lags[0] > 0:
+            return [({param: min(lags[0] * 1e-3, cap)}, {})]
+        return [({}, {})]
+    return variants
 
 
 # [N m/rad] 2SEP's attraction gain B, the catalogue's start (TwoSEP's default).
@@ -362,8 +365,21 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("input_delay", "dead time between commanded and applied motor torque",
            (Param("input_delay.delay", 1e-3, 0.0, 0.01, log=False, unit="s"),),
            lambda m, v: _arm(m, input_delay=v["input_delay.delay"]),
-           evidence=("lag",), plot="time_shift", direct_drive=True, variants=_delay_variants,
+           evidence=("lag",), plot="time_shift", direct_drive=True,
+           variants=_at_located_lag("input_delay.delay", 0.009),
            read=lambda m: _arm_value(m, "input_delay", "input_delay.delay")),
+    # A dead time and a first-order lag of the same time shift differ in how they round the
+    # input's fast changes: a current loop's lag taken as a delay leaves a residual that other
+    # terms (a direction-dependent friction) take up.
+    Effect("input_lag", "first-order lag of the applied motor torque behind its command "
+           "(a current loop's bandwidth), tau du/dt = u_cmd - u",
+           # Linear from (almost) no lag, as the delay: a screen with no lag to find descends to
+           # the base model there, where on a log scale its gradient vanishes on the way.
+           (Param("input_lag.tau", 1e-3, 1e-6, 0.05, log=False, unit="s"),),
+           lambda m, v: _arm(m, input_lag=v["input_lag.tau"]),
+           evidence=("lag",), plot="time_shift", direct_drive=True,
+           variants=_at_located_lag("input_lag.tau", 0.045),
+           read=lambda m: _arm_value(m, "input_lag", "input_lag.tau")),
     Effect("input_offset", "constant bias of the applied motor torque (amplifier or sensor offset)",
            (Param("input_offset.offset", 0.0, -1.0, 1.0, log=False, unit="N m", dim="force"),),
            lambda m, v: _arm(m, input_offset=v["input_offset.offset"]),
@@ -462,9 +478,9 @@ def minimal_model(nominal: Plant, gear_ratio: float) -> Model:
     A direct drive's minimal model is its one inertia under the input, nothing else.
     """
     if isinstance(nominal, DriveSpec):
-        drive = dataclasses.replace(nominal, input_delay=0.0, input_offset=0.0)
+        drive = dataclasses.replace(nominal, input_delay=0.0, input_lag=0.0, input_offset=0.0)
         return drive, drive_joint(JointParams(friction=None, ripple=None))
-    arm = dataclasses.replace(nominal, segments=0, gravity=0.0, input_delay=0.0, input_offset=0.0)
+    arm = dataclasses.replace(nominal, segments=0, gravity=0.0, input_delay=0.0, input_lag=0.0, input_offset=0.0)
     joint = JointParams(friction=None, load_friction=None, ripple=None,
                         transmission=rigid_gear(arm, gear_ratio))
     return arm, joint

@@ -11,7 +11,7 @@ from .effects import EFFECTS
 from .structure import Structure
 
 # Arm fields that effects switch on (the rest are the nominal arm's, kept as they are).
-ARM_FIELDS = ("segments", "rod_ei", "segment_damping", "gravity", "input_delay", "input_offset")
+ARM_FIELDS = ("segments", "rod_ei", "segment_damping", "gravity", "input_delay", "input_lag", "input_offset")
 
 
 def structure_from_model(model: ModelFile, gear_ratio: float | None, *, effects=None, model_name: str = "model",

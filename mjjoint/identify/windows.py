@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import ctypes
+import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -29,7 +30,7 @@ from functools import cached_property
 import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
-from scipy.signal import savgol_coeffs, savgol_filter
+from scipy.signal import lfilter, savgol_coeffs, savgol_filter
 
 from ..coupling.kernels import friction_history, hysteresis_history
 from ..coupling.layout import TRANSMISSION, X, steady_states, term_slots, term_states
@@ -711,7 +712,10 @@ class Predictor:
         flex = self._flexible_rows(model, ji, i0)
         flex_lead = int(round(FLEX_LEAD * self.m.rate))
         # One history run serves the window starts and both kinds of lead-in's starts.
-        x = self._initial_states(model, np.concatenate([i0, i0[rows] - lead, i0[flex] - flex_lead]), ji, skew)
+        starts = np.concatenate([i0, i0[rows] - lead, i0[flex] - flex_lead])
+        x = self._initial_states(model, starts, ji, skew)
+        if model.na:
+            x[:, 1 + model.nq + model.nv + model.actuator_actadr[ji.actuator]] = self._activation(model, ji, delay, starts)
         x0, first, bent = x[:len(i0)], x[len(i0):len(i0) + len(rows)], x[len(i0) + len(rows):]
         if flex.size:
             job = _FlexLead(model, ji, delay, i0[flex] - flex_lead, bent, x0, flex)
@@ -732,6 +736,23 @@ class Predictor:
         ji.plugin_states(x0)[rows, fs] = st[:, fs]
         self.rollouts += len(rows) * (n - 1) / (len(self.starts) * (self.nwin_samples - 1))
         return x0
+
+    def _activation(self, model, ji, delay: float, i0: np.ndarray) -> np.ndarray:
+        """The input lag's state (the actuator's activation) at samples ``i0``: the model's own
+        exact filter (``assets.builder.set_input``) run over the recording's delayed held input
+        from each stacked recording's first sample, where it starts settled on that input."""
+        h = model.opt.timestep
+        decay = math.exp(-h / model.actuator_dynprm[ji.actuator, 0])
+        sub = self._substeps(model)
+
+        def run() -> np.ndarray:
+            parts = []
+            for a, b in self.m.segments:
+                c = self._controls(model, np.array([a]), b - a, delay, ji)[0, :, ji.actuator]
+                after = lfilter([1.0 - decay], [1.0, -decay], c, zi=[decay * c[0]])[0]  # after each step
+                parts.append(np.concatenate([c[:1], after[sub - 1::sub]]))
+            return np.concatenate(parts)
+        return self._history((np.array([decay, delay, sub]),), run)[i0]
 
     def _flexible_rows(self, model, ji, i0: np.ndarray) -> np.ndarray:
         """Which window starts ``i0`` get a flexible link's lead-in (``_flexible_start``): all, on

@@ -24,6 +24,8 @@ from .record import Excitation, Sensors
 BASE = ("coulomb_friction", "viscous_friction", "load_friction", "gravity", "linear_stiffness",
         "transmission_damping")
 LUGRE_FORMS = ("dynamic_friction",)   # catalogue form of LuGre's pre-sliding and lag
+# A current loop's first-order lag: the catalogue's own lag, or the dead time of the same shift.
+LAG = ("input_lag", "input_delay")
 # The smallest link inertia the tool's arm model can take (hub + bare rod, no tip mass) [kg m^2].
 MIN_LINK_INERTIA = 0.03
 
@@ -135,7 +137,7 @@ def _seed_joint(r):
 
 
 def _current_loop(r):
-    return _lab(r, current_lag=r.uniform(2e-3, 5e-3)), {"right": ("input_delay",)}
+    return _lab(r, current_lag=r.uniform(2e-3, 5e-3)), {"right": LAG}
 
 
 def _gear_efficiency(r):
@@ -179,7 +181,7 @@ def _flexible_rod(r):
 
 def _backlash_and_lag(r):
     return _lab(r, backlash=r.uniform(7e-4, 1.5e-3), current_lag=r.uniform(2e-3, 5e-3)), \
-        {"right": ("backlash", "input_delay")}
+        {"right": ("backlash", *LAG)}
 
 
 def _position_friction_and_hysteresis(r):
