@@ -83,6 +83,19 @@ def test_a_condition_that_holds_in_every_held_out_window_is_one_test_not_two():
     assert acceptance_p(d, some)[0] == min(1.0, 2 * min(acceptance_p(d, some)[1:]))
 
 
+def test_a_condition_too_rare_to_test_still_halves_the_level():
+    """Where fewer than 5 held-out windows hold the condition its test cannot run, and the
+    all-window p is doubled as it is beside that test: on 6 held-out windows, one with a
+    reversal, 5 better (p 2/64) name no break-away effect, all 6 (p 1/64) may. A recording that
+    seldom shows the condition does not make the test more lenient."""
+    d = np.array([0.3, 0.2, 0.4, 0.1, 0.5, -0.05])
+    inside = np.array([True, False, False, False, False, False])
+    p, p_all, p_cond = acceptance_p(d, inside)
+    assert p_cond is None and p_all == 2 / 64 and p == 2 * p_all > MAX_P
+    assert acceptance_p(np.abs(d), inside)[0] == 2 / 64 <= MAX_P
+    assert acceptance_p(d)[0] == p_all <= MAX_P  # an effect without a condition: one test
+
+
 def test_windows_are_ranked_by_their_relative_gain_not_their_size(monkeypatch):
     """Windows' costs span decades (a transient, a resting stretch): one large window that loses
     3 % must not outrank seven that halve. With cost differences it would (p 0.098); with log
@@ -98,11 +111,13 @@ def test_windows_are_ranked_by_their_relative_gain_not_their_size(monkeypatch):
     assert loop.rank_p(before - after) > 0.09
 
 
-def test_too_few_condition_windows_leave_the_all_window_test_alone():
+def test_too_few_condition_windows_are_not_tested_apart():
     n = 40
     test = np.arange(0, n, 2)
     inside, text = condition_mask(_predictor(n, [0, 4], test), "dynamic_friction")  # 2 held-out windows
-    assert inside is None and "only 2" in text
+    assert inside.sum() == 2 and "reversal" in text
+    p, p_all, p_cond = acceptance_p(np.random.default_rng(7).normal(0.5, 0.2, len(test)), inside)
+    assert p_cond is None and p == min(1.0, 2 * p_all)
 
 
 # ---- the second, all-free screen: when it is called, and at which level ----------------------

@@ -1081,17 +1081,13 @@ def condition_windows(t: np.ndarray, qd: np.ndarray, starts: np.ndarray, length:
 
 def condition_mask(predictor: Predictor, effect: str) -> tuple[np.ndarray | None, str]:
     """Which held-out windows (``predictor.test`` order) hold the condition ``effect`` acts under,
-    and in words; None when the effect has none (``Effect.acts_under``) or fewer than MIN_HELDOUT
-    held-out windows hold it (no rank test on them could pass)."""
+    and in words; None when the effect has none (``Effect.acts_under``)."""
     condition = EFFECTS[effect].acts_under
     if condition is None:
         return None, ""
     m, test = predictor.m, predictor.test
-    inside = condition_windows(m.t, m.qd, predictor.starts[test], predictor.nwin_samples, condition)
-    text = CONDITION_TEXT[condition]
-    if inside.sum() < MIN_HELDOUT:
-        return None, f"only {int(inside.sum())} held-out windows with {text}"
-    return inside, text
+    return (condition_windows(m.t, m.qd, predictor.starts[test], predictor.nwin_samples, condition),
+            CONDITION_TEXT[condition])
 
 
 def rank_p(reductions: np.ndarray) -> float:
@@ -1104,17 +1100,24 @@ def rank_p(reductions: np.ndarray) -> float:
 
 
 def acceptance_p(reductions: np.ndarray, inside: np.ndarray | None = None) -> tuple[float, float, float | None]:
-    """(p that decides, p over all held-out windows, p over those ``inside`` the condition).
+    """(p that decides, p over all held-out windows, p over those ``inside`` the condition, None
+    where fewer than MIN_HELDOUT are: no rank test on them could pass).
 
     Without a condition the all-window p decides. With one, the smaller of the two counts,
-    doubled (Bonferroni): the pair of tests keeps the level of one. Where every held-out window
-    holds the condition the two are one test, and its p decides as it is.
+    doubled (Bonferroni): the pair of tests keeps the level of one. Where too few held-out
+    windows hold the condition to test it, the all-window p is doubled all the same: an
+    effect's test is fixed before anything is fitted, and a recording that seldom shows where
+    the effect acts does not make it more lenient (its gain then lies where it does not act).
+    Where every held-out window holds the condition the two are one test, and its p decides as
+    it is.
     """
     d = np.asarray(reductions, float)
     p_all = rank_p(d)
     if inside is None:
         return p_all, p_all, None
     inside = np.asarray(inside, bool)
+    if inside.sum() < MIN_HELDOUT:
+        return min(1.0, 2.0 * p_all), p_all, None
     p_cond = rank_p(d[inside])
     return (p_all if inside.all() else min(1.0, 2.0 * min(p_all, p_cond))), p_all, p_cond
 
@@ -1126,8 +1129,11 @@ def _consistency(predictor: Predictor, effect: str, before: Structure, after: St
     inside, text = condition_mask(predictor, effect)
     p, p_all, p_cond = acceptance_p(d, inside)
     if inside is None:
-        note = f" ({text})" if text else ""
-        return {"windows": f"{len(w)} held-out windows{note}", "n": int(len(w)), "p": p}
+        return {"windows": f"{len(w)} held-out windows", "n": int(len(w)), "p": p}
+    if p_cond is None:
+        return {"windows": f"{len(w)} held-out windows (p {p_all:.3g}; only {int(inside.sum())} with {text}, "
+                           "too few to test, Bonferroni)",
+                "n": int(len(w)), "n_condition": int(inside.sum()), "p_all_heldout": p_all, "p": p}
     return {"windows": f"{len(w)} held-out windows (p {p_all:.3g}) and the {int(inside.sum())} with {text} "
                        f"(p {p_cond:.3g})" + ("" if inside.all() else ", Bonferroni"),
             "n": int(len(w)), "n_condition": int(inside.sum()),
