@@ -84,7 +84,8 @@ a residual, nor the candidate's or the base's predictions), and it is fixed per 
 physics before anything is fitted, so under the null (no systematic reduction) the selected
 windows' reductions are as symmetric as all of them and that test keeps its level. Of the two
 tests the smaller p counts, Bonferroni-corrected (2 x min(p_all, p_condition) <= ``max_p``), so
-the pair keeps the level of one test; the gain thresholds and the BIC still count all held-out
+the pair keeps the level of one test; where too few held-out windows hold the condition for its
+test, 2 x p_all decides all the same; the gain thresholds and the BIC still count all held-out
 windows. Both are needed: with the motion reconstructed from the angle, 2SEP also acts on
 small retraces that no velocity swing marks (20 s case: p 0.0016 over all windows, 0.034 over
 the 13 with a swing).

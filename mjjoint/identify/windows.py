@@ -739,8 +739,8 @@ class Predictor:
 
     def _activation(self, model, ji, delay: float, i0: np.ndarray) -> np.ndarray:
         """The input lag's state (the actuator's activation) at samples ``i0``: the model's own
-        exact filter (``assets.builder.set_input``) run over the recording's delayed held input
-        from each stacked recording's first sample, where it starts settled on that input."""
+        activation step (``assets.builder.set_input``) run over the recording's delayed held
+        input from each stacked recording's first sample, where it starts settled on that input."""
         h = model.opt.timestep
         decay = math.exp(-h / model.actuator_dynprm[ji.actuator, 0])
         sub = self._substeps(model)
