@@ -1,6 +1,7 @@
-"""Coverage of the fits' 95 % intervals, per concealed effect, over simulated recordings.
+"""Coverage of the fits' 95 % intervals, per effect, over simulated recordings.
 
-For each effect and seed: the concealed case's truth (``benchmark.cases``) records the lab
+For each effect and seed: the case's truth (``benchmark.cases``: a concealed case's, or one drawn
+for the coverage alone, ``COVERAGE_ONLY``) records the lab
 programme in closed loop; the TRUE structure is fitted to it from the catalogue's initial values,
 as ``mjjoint fit`` fits (``--restarts``, its default: staged, restarted where it ends on a bound);
 each parameter's 95 % interval is checked against the truth. A parameter counts as identifiable
@@ -23,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjjoint.benchmark.cases import CONCEALED, GEAR_RATIO, make_case
+from mjjoint.benchmark.cases import GEAR_RATIO, TRUTHS, make_case
 from mjjoint.benchmark.score import write_case_recording
 from mjjoint.cli.fit import RESTARTS
 from mjjoint.diagnosis.floor import noise_floor
@@ -33,7 +34,7 @@ from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.recordings import read_recording
 
-EFFECTS_SCORED = tuple(e for e in CONCEALED if e not in ("none", "gravity"))
+EFFECTS_SCORED = tuple(e for e in TRUTHS if e not in ("none", "gravity"))
 
 
 def covered(result, truth: Structure, explained: bool) -> dict[str, tuple[bool, bool]]:
@@ -62,10 +63,10 @@ def main(argv=None) -> int:
                          "parameter's, or none (the linearised intervals); with own or all, every interval is also "
                          "widened by its step bias, as the diagnosis and mjjoint fit widen them")
     args = ap.parse_args(argv)
-    unknown = [e for e in args.effects.split(",") if e not in CONCEALED or e == "none"]
+    unknown = [e for e in args.effects.split(",") if e not in TRUTHS or e == "none"]
     if unknown:
-        ap.error(f"--effects: {unknown[0]!r} is not a concealed case with parameters "
-                 f"(allowed: {', '.join(e for e in CONCEALED if e != 'none')})")
+        ap.error(f"--effects: {unknown[0]!r} is not a case with parameters "
+                 f"(allowed: {', '.join(e for e in TRUTHS if e != 'none')})")
     pooled: dict[str, list[tuple[bool, bool]]] = {}
     print("effect                   parameter                         identifiable  covered")
     for effect in args.effects.split(","):
