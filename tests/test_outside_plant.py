@@ -193,6 +193,29 @@ def test_every_case_draws_a_plant_and_the_reference_is_continuous():
     assert np.max(np.abs(np.diff(ref))) < 2e-3   # no jumps: a closed loop would kick the joint
 
 
+def test_a_case_records_at_the_rate_asked_and_a_rate_of_none_is_refused():
+    """The sample rate (and the PD loop's) is the case's: 250 Hz gives 4 ms samples, the same
+    plant and reference; no rate is refused with its range."""
+    from mjjoint.benchmark.independent.record import record
+    slow, fast = make_case("control", 0, 0.5, rate=250.0), make_case("control", 0, 0.5)
+    assert slow.plant == fast.plant and slow.excitation.rate == 250.0
+    cols = record(slow.plant, slow.excitation, slow.sensors, 0)
+    assert len(cols["t"]) == 125 and np.allclose(np.diff(cols["t"]), 4e-3)
+    assert np.all(np.isfinite(cols["q"])) and np.all(np.isfinite(cols["tau"]))
+    with pytest.raises(ValueError, match="allowed: > 0"):
+        make_case("control", 0, 0.5, rate=0.0)
+
+
+def test_a_plant_whose_samples_are_too_long_for_its_steps_says_where_it_diverged():
+    """The chapter's 2SEP plant at 250 Hz: its lag state, at rest when each sample's RK4 steps are
+    sized, speeds up past their stability within the first 4 ms sample. One error naming the time
+    and the reason, not a math domain error from inside a step."""
+    from mjjoint.benchmark.independent.record import record
+    case = make_case("twosep", 1, 1.0, rate=250.0)
+    with np.errstate(all="ignore"), pytest.raises(FloatingPointError, match="diverged at t = .* too long"):
+        record(case.plant, case.excitation, case.sensors, 1)
+
+
 def test_every_right_or_tolerated_name_is_an_effect_the_tool_can_name():
     """A scored name outside the tool's vocabulary could never count; a periodic structure of the
     motor angle counts as its generic form too (the plant's cogging runs at a real period)."""

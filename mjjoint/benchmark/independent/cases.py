@@ -225,13 +225,17 @@ CASES: dict[str, tuple[str, Callable]] = {
 CONTROLS = ("control", "coarse_encoder")
 
 
-def make_case(name: str, seed: int, duration: float = 6.0) -> OutsideCase:
+def make_case(name: str, seed: int, duration: float = 6.0, rate: float = Excitation.rate) -> OutsideCase:
+    """Case ``name``'s truth drawn for ``seed``, recorded for ``duration`` [s] at ``rate`` [Hz] (the
+    PD loop runs at the sample rate)."""
     if name not in CASES:
         raise ValueError(f"unknown out-of-regime case {name!r} (allowed: {', '.join(CASES)})")
+    if not rate > 0:
+        raise ValueError(f"sample rate {rate!r} Hz out of range (allowed: > 0)")
     what, build = CASES[name]
     r = np.random.default_rng(7000 + 97 * seed + list(CASES).index(name))
     plant, extra = build(r)
     assert plant.link_inertia + (plant.rod.tip_inertia if plant.rod else 0) >= MIN_LINK_INERTIA
     sensors = extra.pop("sensors", Sensors())
-    excitation = Excitation(duration=duration, seed=seed, sweep=extra.pop("sweep", Excitation.sweep))
+    excitation = Excitation(duration=duration, rate=rate, seed=seed, sweep=extra.pop("sweep", Excitation.sweep))
     return OutsideCase(name, seed, what, plant, sensors, excitation, **extra)

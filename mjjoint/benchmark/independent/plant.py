@@ -229,8 +229,13 @@ def simulate(plant: JointPlant, t: np.ndarray, input_at, substeps: int = 10, s0:
         # RK4 is stable to h rate = 2.78: at least `substeps` steps, more while the bristle is fast.
         m = max(substeps, math.ceil((t[k + 1] - t[k]) * 1.5 * plant.fast_rate(s) / MAX_RATE_STEP))
         h = (t[k + 1] - t[k]) / m
-        for _ in range(m):
-            s = plant.step(s, u[k], h)
+        try:
+            for _ in range(m):
+                s = plant.step(s, u[k], h)
+        except (ArithmeticError, ValueError):  # a state past math's domain: diverged within the sample
+            s = np.full_like(s, np.nan)
         if not np.all(np.isfinite(s)):
-            raise FloatingPointError(f"the independent plant diverged at t = {t[k + 1]:.4g} s")
+            raise FloatingPointError(f"the independent plant diverged at t = {t[k + 1]:.4g} s (its RK4 steps "
+                                     f"are sized at each sample's start: a sample of {t[k + 1] - t[k]:.3g} s "
+                                     "may be too long for its fastest state)")
     return Trajectory(t, states, torque, u)

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .cases import OutsideCase, make_case
-from .record import record, write_csv
+from .record import Excitation, record, write_csv
 
 FAR = 3.0            # final NRMSE this multiple of the true floor: "far above" it
 RESOLUTION = 0.01    # no NRMSE below this counts as a floor (integration differences)
@@ -76,12 +76,12 @@ def score_diagnosis(case: OutsideCase, diag, seconds: float) -> OutsideScore:
 
 
 def run_case(name: str, seed: int, folder: Path, duration: float = 6.0, progress=None, options=None,
-             torque: bool = True) -> OutsideScore:
-    """Record the case, write its CSV (without the torque column where ``torque`` is false: a
-    joint with no torque sensor, as most robots are), diagnose the CSV as a user would
+             torque: bool = True, rate: float = Excitation.rate) -> OutsideScore:
+    """Record the case at ``rate`` [Hz], write its CSV (without the torque column where ``torque``
+    is false: a joint with no torque sensor, as most robots are), diagnose the CSV as a user would
     (``options``: a ``DiagnoseOptions``, default the command line's), and score it."""
     from ... import diagnose  # the public API, as ``mjjoint diagnose`` runs it
-    case = make_case(name, seed, duration)
+    case = make_case(name, seed, duration, rate)
     cols = record(case.plant, case.excitation, case.sensors, seed)
     path = write_csv(folder / "recording.csv", {k: v for k, v in cols.items() if torque or k != "tau"})
     start = time.perf_counter()
