@@ -433,6 +433,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 choice, screen = _decide(predictor, ref, screened, options, floor_cost, options.max_p / 2), "all free"
         generic = (generic_candidates(ref.structure, where, refused(revisions)) if choice.failed and options.generic
                    else ())
+        generic_rejected = ""
         if generic:
             say(f"  no catalogued effect explains the located residual: screening the generic forms it "
                 f"points to ({', '.join(generic)})")
@@ -443,6 +444,9 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 g_choice = _decide(predictor, g_ref, g_screened, options, floor_cost)
             if not g_choice.failed:
                 choice, ref, screened, rest, screen = g_choice, g_ref, g_screened, g_rest, "generic form"
+            else:
+                generic_rejected = rejection(g_choice, "the best generic form")
+                say(f"  {generic_rejected}")
         if choice.failed and options.pairs:
             from .pairs import pair_screen  # pairs builds on this module
             with phases("pair screen"):
@@ -452,7 +456,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         best, cand, gain = choice.best, choice.cand, choice.gain
         unresolved = unresolved_screens({**rest, **screened}, ref.cost_test)
         if choice.failed:
-            rejected = rejection(choice)
+            rejected = rejection(choice) + (f"; {generic_rejected}" if generic_rejected else "")
             say(f"best candidate {best}: held-out cost {-100 * gain:+.1f} % "
                 f"(abs {ref.cost_test - cand.cost_test:.3g}, paired p = {choice.consistency['p']:.3f} on "
                 f"{choice.consistency['windows']}): not significant")
@@ -944,10 +948,10 @@ class _Choice:
     only_inconsistent: bool  # material and BIC-supported, failing only the rank test
 
 
-def rejection(choice: _Choice) -> str:
-    """Why a round's best candidate was not named, for the verdict; where only the rank test
-    refused a material gain, how many held-out windows it had."""
-    text = (f"the best candidate, {choice.best}, {'lowers' if choice.gain >= 0 else 'raises'} the held-out cost by "
+def rejection(choice: _Choice, what: str = "the best candidate") -> str:
+    """Why a round's best candidate (``what``) was not named, for the verdict; where only the rank
+    test refused a material gain, how many held-out windows it had."""
+    text = (f"{what}, {choice.best}, {'lowers' if choice.gain >= 0 else 'raises'} the held-out cost by "
             f"{100 * abs(choice.gain):.1f} % but fails: {', '.join(choice.failed)}")
     if choice.only_inconsistent:
         text += (f" on {choice.consistency['n']} held-out windows (a longer recording, with more of them, would "
