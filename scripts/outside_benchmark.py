@@ -21,6 +21,7 @@ import sys
 from pathlib import Path
 
 from mjjoint.benchmark.independent.cases import CASES
+from mjjoint.benchmark.independent.record import Excitation
 from mjjoint.benchmark.independent.score import run_case
 
 
@@ -29,8 +30,8 @@ def main(argv=None) -> int:
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
     ap.add_argument("--seeds", nargs="+", type=int, default=[0])
     ap.add_argument("--duration", type=float, default=6.0, help="recording length [s] (default 6)")
-    ap.add_argument("--rate", type=float, default=1000.0,
-                    help="sample rate [Hz] of the recordings and of the PD loop (default 1000)")
+    ap.add_argument("--rate", type=float, default=Excitation.rate,
+                    help=f"sample rate [Hz] of the recordings and of the PD loop (default {Excitation.rate:g})")
     ap.add_argument("--out", type=Path, default=Path("out/outside"))
     ap.add_argument("--no-torque", action="store_true",
                     help="leave the torque column out of the recordings (a joint with no torque sensor)")
