@@ -50,6 +50,8 @@ def main(argv=None) -> int:
                 print(f"[{name}] not recorded: {e}", flush=True)
                 failed.append(f"{name}-{seed}")
                 continue
+            except ValueError as e:  # a recording the diagnosis refuses (too short for its windows)
+                ap.error(f"[{name}] {e}")
             rows.append(s)
             print(f"[{name}] named={s.named} explained={s.explained} {s.worst} NRMSE {s.nrmse_before:.3f}->"
                   f"{s.nrmse_after:.3f} (true floor {s.true_floor:.3f}) {'PASS' if s.passed else 'FAIL'}\n"
