@@ -8,10 +8,12 @@ Each round:
    screened by fitting its own parameters and those of the effects it refines, the rest held
    at their fitted values, on
    the training windows; if the best one's gain is material but inconsistent over windows
-   (only the rank test fails), once more with every parameter free, from and against the
-   current structure refitted with every parameter free, the rank test at half the level
-   (stand-ins for a missing effect need not sit at its site: a delay's phase lag in the
-   load's viscous coefficient; docs/diagnosis.md). Screens run in two stages (CONTINUE_SHARE):
+   (only the rank test fails), or it fails while the model misses FAR_FROM_FLOOR times its
+   noise floor (the terms it has bent toward what it lacks), once more with every parameter
+   free, from and against the current structure refitted with every parameter free, the rank
+   test at half the level (stand-ins for a missing effect need not sit at its site: a delay's
+   phase lag in the load's viscous coefficient, a flexible rod's in a rigid link's gravity and
+   tip mass; docs/diagnosis.md). Screens run in two stages (CONTINUE_SHARE):
    every candidate on the coarse subset of the training windows, then the few that gain most
    on the model itself fitted the same way on all of them, each to the result a whole screen gives;
 4. the candidate that lowers the HELD-OUT cost most is named if it passes both tests below;
@@ -133,7 +135,7 @@ class DiagnoseOptions:
     candidates: tuple[str, ...] | None = None  # default: every effect
     robust_final: bool = True    # the final structure's parameters under the robust loss (step 5)
     robust_refit: bool = True    # each added effect's refit once more under the robust loss (step 4)
-    free_all: bool = True        # a material but inconsistent best screen: screen again, all free
+    free_all: bool = True        # a material but inconsistent best screen, or a model far above its floor: screen again, all free
     generic: bool = True         # where no catalogued effect explains a located residual, fit the generic forms it points to
     revise: bool = True          # after each addition: stand-in guard, swaps for rivals, removals (diagnosis.revise)
     pairs: bool = True           # no single candidate passes: the two best screens together (diagnosis.pairs)
@@ -413,15 +415,19 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         located = (current.structure, where)
         clock.round = k
         with phases("noise floor"):
-            floor_cost = noise_floor(predictor, current.structure).cost()
+            floor = noise_floor(predictor, current.structure)
+        floor_cost = floor.cost()
         ref, screened, rest = _screen(predictor, current, where, search, say, clock, unstable, stepped, signs)
         if not screened:
             break
         with phases("acceptance tests"):
             choice, screen = _decide(predictor, ref, screened, options, floor_cost), "stand-ins held"
-        if choice.only_inconsistent and options.free_all:
-            say(f"  best candidate {choice.best} fails only the rank test ({choice.failed[0]}); screening "
-                "again with every parameter free, from the model refitted")
+        far = max(floor.ratios(current.nrmse_test).values())
+        if choice.failed and options.free_all and (choice.only_inconsistent or far > FAR_FROM_FLOOR):
+            why = (f"fails only the rank test ({choice.failed[0]})" if choice.only_inconsistent else
+                   f"fails while the model misses {far:.3g} times its noise floor")
+            say(f"  best candidate {choice.best} {why}; screening again with every parameter free, "
+                "from the model refitted")
             ref, screened, rest = _screen(predictor, current, where, search, say, clock, unstable, stepped, signs,
                                           free_all=True)
             if ref.cost_test < current.cost_test:  # the same structure, fitted further
@@ -852,6 +858,14 @@ def _nested(predictor: Predictor, name: str, values: dict, settings: dict, res: 
     again = prior.structure.with_effect(effect, {k: v for k, v in values.items() if k in own}, settings)
     res2 = fit(predictor, again, freed, max_iter=options.screen_iter, subset_only=True)
     return (res2, again) if res2.cost_test < res.cost_test else (res, trial)
+
+
+# A model that misses its worst signal by this many times the signal's noise floor (held-out
+# NRMSE) holds stand-ins: the terms it has were bent toward what it lacks (a rigid link's fit
+# of a flexible rod's recording: gravity and the tip mass far below the truth, 2SEP's K on its
+# bound), and a candidate screened with those held cannot show its gain. Where nothing passes,
+# the screen is repeated with every parameter free, as for a gain the rank test alone refuses.
+FAR_FROM_FLOOR = 10.0
 
 
 UNSTABLE_COST = 1e5  # a held-out cost this high holds predictions that diverged (identify.fit._BAD)
