@@ -5,7 +5,9 @@ The verdict must be a calibrated claim: never "nothing missing" and never "expla
 final model misses far above the recording's noise floor; every signal predicted to NRMSE 0.3 with
 no parameter on a bound; the backlash named. About 6 minutes on 2 cores, in CI: it is the first
 thing a new user runs. The same route with the gear's hysteresis or its hardening spring as the
-gear effect, the multisine driving the gear to its rated deflection, is slow (5 to 10 minutes each).
+gear effect, the multisine driving the gear to its rated deflection, is slow (5 to 10 minutes each);
+so is the route's recording diagnosed from the default base (every term of the seed's joint on a
+rigid link), about 15 minutes.
 """
 from __future__ import annotations
 
