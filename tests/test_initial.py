@@ -117,6 +117,38 @@ def test_a_fit_started_off_ends_on_a_bound_and_restarts_recover_the_truth():
     assert best.structure.values["coulomb_friction.fc"] == pytest.approx(fc, rel=0.05)
 
 
+def test_a_refit_on_a_bound_far_from_its_floor_is_fitted_again_from_the_recordings_start():
+    """The diagnosis's refit after an addition (``loop.restarted``): a fit left on its bounds far
+    above the noise floor is fitted again from the recording's estimates and the lower training
+    cost kept; a fit near its floor with nothing on a bound is returned as it is."""
+    from mjjoint.diagnosis.clock import Phases
+    from mjjoint.diagnosis.floor import noise_floor
+    from mjjoint.diagnosis.loop import FAR_FROM_FLOOR, DiagnoseOptions, restarted
+    from mjjoint.identify.fit import fit
+    from mjjoint.identify.windows import Predictor, WindowDesign
+    measured = Measured.from_recording(servo_recording(SMALL, duration=3.0), 1.0, output=False)
+    start = estimate(measured)
+    nominal = DriveSpec(joint_type="hinge", v_eps=start.v_eps(DriveSpec.timestep, DriveSpec.v_eps))
+    s = Structure.create(("coulomb_friction", "viscous_friction"), nominal, 1.0, start=start)
+    bounds = {p.name: (p.lo, p.hi) for p in s.params}
+    off = s.with_values({"inertia.motor": bounds["inertia.motor"][0], "coulomb_friction.fc": bounds["coulomb_friction.fc"][1],
+                         "viscous_friction.sigma": bounds["viscous_friction.sigma"][1]})
+    pred = Predictor(measured, WindowDesign(length=0.25))
+    floor = noise_floor(pred, s)
+    options = DiagnoseOptions(fit_iter=10)
+    said = []
+    phases = Phases(lambda: pred.rollouts)
+    stuck = fit(pred, off, max_iter=10)
+    assert stuck.on_bound and max(floor.ratios(stuck.nrmse_test).values()) > FAR_FROM_FLOOR
+    again = restarted(pred, stuck, floor, options, said.append, None, phases)
+    assert again.on_bound == () and again.cost_train < stuck.cost_train
+    assert again.structure.values["inertia.motor"] == pytest.approx(SMALL.inertia, rel=0.05)
+    assert "refitted from the recording's start" in said[0] and said[0].endswith(": kept")
+    good = fit(pred, s, max_iter=10)
+    assert good.on_bound == ()
+    assert restarted(pred, good, floor, options, said.append, None, phases) is good and len(said) == 1
+
+
 def test_the_lab_arms_recordings_keep_the_catalogues_orders():
     """Chirp, multisine and the closed-loop lab program all round to the catalogue's decade:
     on the arm the catalogue is scaled by exactly 1, and a drive 5 decades away is not."""

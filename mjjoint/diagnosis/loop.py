@@ -21,7 +21,9 @@ Each round:
    to (``identify.generic``: the open vocabulary, named by site and form) are screened and
    judged the same way; if none of those does either, the two best screens fitted together
    (``diagnosis.pairs``: two missing terms can mask each other) are judged as one addition;
-   it is added, the whole structure refitted (least squares, then under the robust loss over
+   it is added, the whole structure refitted (least squares; where that leaves a parameter on
+   a stand-in bound FAR_FROM_FLOOR times the floor away, again from the recording's start,
+   ``restarted``; then under the robust loss over
    windows, kept if that lowers the held-out cost: ``DiagnoseOptions.robust_refit``), the
    search revised (``diagnosis.revise``: an addition that is a stand-in is refused, named
    effects are swapped for rivals or removed when the acceptance rule says so), and the next
@@ -110,7 +112,7 @@ from scipy.stats import wilcoxon
 
 from ..assets.stability import check_model_stability, stable_timesteps
 from ..identify.effects import EFFECTS, GENERIC, ON_REQUEST, base_params, incompatible, plant_effects
-from ..identify.fit import FitResult, check_intervals, finish, fit, window_costs
+from ..identify.fit import FitResult, check_intervals, finish, fit, restart_points, window_costs
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .clock import Phases, ScreenClock
@@ -492,6 +494,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                         progress=iterations)
         if refit.cost_test > cand.cost_test:
             refit = cand  # keep the screened fit if the full refit wandered off on held-out data
+        refit = restarted(predictor, refit, floor, options, say, iterations, phases)
         if options.robust_refit:
             # Least squares can stall in a local minimum with the new term (a play's dead zone);
             # the next round would then name a stand-in for the rest (step 4).
@@ -939,6 +942,29 @@ def _base_fit(predictor: Predictor, base: Structure, options: DiagnoseOptions, s
     say(f"  its fitted values are stable at timestep {base.nominal.timestep:.3g} s: fitted on there")
     coarse = fit(predictor, back, max_iter=options.fit_iter, progress=iterations)
     return coarse if coarse.cost_test < UNSTABLE_COST else result
+
+
+def restarted(predictor: Predictor, result: FitResult, floor: Floor, options: DiagnoseOptions, say,
+               iterations, phases: Phases) -> FitResult:
+    """``result``, or the same structure fitted from the recording's initial values where that
+    reaches the lower training cost; tried only where ``result`` holds a parameter on a bound that
+    marks a stand-in and misses its worst signal by FAR_FROM_FLOOR times its noise floor. A refit
+    after an addition starts where the model without it ended, with every term it has bent toward
+    what it lacked, and the new term can leave the old ones in that bent valley
+    (docs/diagnosis.md, step 4)."""
+    far = max(floor.ratios(result.nrmse_test).values())
+    if not result.on_bound or far <= FAR_FROM_FLOOR:
+        return result
+    starts = restart_points(result.structure, None, 1, predictor.design.seed)
+    if not starts:
+        return result
+    with phases("refit after addition, from the recording's start"):
+        again = fit(predictor, starts[0], max_iter=options.fit_iter, progress=iterations)
+    keep = again.cost_train < result.cost_train
+    say(f"  {', '.join(result.on_bound)} on a bound {far:.3g} times the noise floor away: refitted from the "
+        f"recording's start, training cost {result.cost_train:.4g} -> {again.cost_train:.4g} "
+        f"(held-out {result.cost_test:.4g} -> {again.cost_test:.4g}): {'kept' if keep else 'not kept'}")
+    return again if keep else result
 
 
 def _at_step(predictor: Predictor, structure: Structure, timestep: float) -> Structure:
