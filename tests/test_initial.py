@@ -139,7 +139,7 @@ def test_a_refit_on_a_bound_far_from_its_floor_is_fitted_again_from_the_recordin
     said = []
     phases = Phases(lambda: pred.rollouts)
     stuck = fit(pred, off, max_iter=10)
-    assert stuck.on_bound and max(floor.ratios(stuck.nrmse_test).values()) > FAR_FROM_FLOOR
+    assert stuck.on_bound and floor.worst(stuck.nrmse_test) > FAR_FROM_FLOOR
     again = restarted(pred, stuck, floor, options, said.append, None, phases)
     assert again.on_bound == () and again.cost_train < stuck.cost_train
     assert again.structure.values["inertia.motor"] == pytest.approx(SMALL.inertia, rel=0.05)

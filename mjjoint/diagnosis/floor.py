@@ -90,6 +90,10 @@ class Floor:
         floor = self.nrmse
         return {s: (float(nrmse[s]) / floor[s] if np.isfinite(nrmse[s]) else np.inf) for s in self.signals}
 
+    def worst(self, nrmse: dict[str, float]) -> float:
+        """The largest of ``ratios``: how far the model is from the floor where it misses most."""
+        return max(self.ratios(nrmse).values())
+
     def explained(self, nrmse: dict[str, float]) -> bool:
         return all(r <= EXPLAINED_RATIO for r in self.ratios(nrmse).values())
 

@@ -424,7 +424,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             break
         with phases("acceptance tests"):
             choice, screen = _decide(predictor, ref, screened, options, floor_cost), "stand-ins held"
-        far = max(floor.ratios(current.nrmse_test).values())
+        far = floor.worst(current.nrmse_test)
         if choice.failed and options.free_all and (choice.only_inconsistent or far > FAR_FROM_FLOOR):
             why = (f"fails only the rank test ({choice.failed[0]})" if choice.only_inconsistent else
                    f"fails while the model misses {far:.3g} times its noise floor")
@@ -867,7 +867,9 @@ def _nested(predictor: Predictor, name: str, values: dict, settings: dict, res: 
 # NRMSE) holds stand-ins: the terms it has were bent toward what it lacks (a rigid link's fit
 # of a flexible rod's recording: gravity and the tip mass far below the truth, 2SEP's K on its
 # bound), and a candidate screened with those held cannot show its gain. Where nothing passes,
-# the screen is repeated with every parameter free, as for a gain the rank test alone refuses.
+# the screen is repeated with every parameter free, as for a gain the rank test alone refuses;
+# a refit after an addition that still holds a parameter on a stand-in bound is tried again from
+# the recording's start (``restarted``).
 FAR_FROM_FLOOR = 10.0
 
 
@@ -952,7 +954,7 @@ def restarted(predictor: Predictor, result: FitResult, floor: Floor, options: Di
     after an addition starts where the model without it ended, with every term it has bent toward
     what it lacked, and the new term can leave the old ones in that bent valley
     (docs/diagnosis.md, step 4)."""
-    far = max(floor.ratios(result.nrmse_test).values())
+    far = floor.worst(result.nrmse_test)
     if not result.on_bound or far <= FAR_FROM_FLOOR:
         return result
     starts = restart_points(result.structure, None, 1, predictor.design.seed)
