@@ -84,12 +84,12 @@ def test_the_two_stage_screen_finds_the_candidate_finishing_every_screen_finds(p
 
     def screen():
         return _screen(predictor, base, {}, options, lambda m: None, ScreenClock(1), {}, set())
-    _, two, rest = screen()
+    _, two, rest, _ = screen()
     assert rest and len(two) <= loop.CONTINUE_MAX
     monkeypatch.setattr(loop, "CONTINUE_MAX", 99)
     monkeypatch.setattr(loop, "CONTINUE_SHARE", -np.inf)
     monkeypatch.setattr(loop, "continued", lambda costs, *_: list(range(len(costs))))
-    _, every, none_left = screen()
+    _, every, none_left, _ = screen()
     assert none_left == {}
     best, _ = _choose(every, base.cost_test)
     assert best in {"input_offset", "friction_asymmetry"}
@@ -125,3 +125,99 @@ def test_a_jacobian_at_a_stable_point_skips_the_columns_checks_and_equals_the_ch
     full, n_full = jacobian(False)
     assert np.array_equal(trusted, full)
     assert n_full == len(names) and n_trusted == 1  # the point itself, from the memo
+
+
+def test_the_subset_phases_loss_is_its_training_cost_and_compares_only_like_with_like(predictor):
+    """A fit stopped after its subset phase keeps that phase's loss: the mean squared normalised
+    residual of the subset's windows at the point reached, what ``training_ratio`` compares
+    two such fits by; a finished fit is compared on the training windows instead, never a mix."""
+    from mjjoint.identify.fit import coarse_windows, training_ratio, window_costs
+
+    start = Structure.create((*BASE, "input_offset"), DriveSpec(), 1.0)
+    part = fit(predictor, start, max_iter=30, subset_only=True)
+    subset = coarse_windows(predictor.train, predictor.design.seed)
+    assert part.partial.loss == pytest.approx(np.mean(window_costs(predictor, part.structure, subset)), rel=1e-12)
+    null = fit(predictor, Structure.create(BASE, DriveSpec(), 1.0), max_iter=30, subset_only=True)
+    assert training_ratio(predictor, part, null) == part.partial.loss / null.partial.loss < 1.0
+    # against where the reference started: the bound of a screen started there with fewer parameters free
+    assert null.partial.start_loss == pytest.approx(np.mean(window_costs(predictor, Structure.create(
+        BASE, DriveSpec(), 1.0), subset)), rel=1e-12)
+    assert training_ratio(predictor, part, null, from_start=True) == part.partial.loss / null.partial.start_loss
+    whole = finish(predictor, part)
+    assert training_ratio(predictor, whole, whole) == 1.0
+    with pytest.raises(ValueError, match="subset phase"):
+        training_ratio(predictor, whole, null)
+
+
+def test_a_screen_ending_above_the_model_it_extends_in_training_is_fitted_again_from_other_starts(predictor):
+    """A screen contains the model it extends (the offset at zero is that model), so a training
+    cost above that model's is a fit that did not converge, not evidence: the drive's missing
+    offset started at half its range and stopped after one iteration ends above the fitted
+    base; from other starts of the offset (the catalogue's, then seeded draws; the rest where
+    the first start had them) it explains the drive, the lowest training cost kept."""
+    from mjjoint.identify.fit import restart_points, training_ratio
+
+    base = fit(predictor, Structure.create(BASE, DriveSpec(), 1.0), max_iter=30)
+    null = fit(predictor, base.structure, max_iter=30, subset_only=True)  # as ``_screen`` fits it
+    trial = loop.with_candidate(base.structure, "input_offset", {"input_offset.offset": 50.0})
+    options = DiagnoseOptions(screen_iter=8)
+    stalled = fit(predictor, trial, max_iter=1, subset_only=True)
+    assert training_ratio(predictor, stalled, null, from_start=True) >= loop.UNRESOLVED_RATIO
+    lines = []
+    res, start = loop._restarted_screen(predictor, "input_offset", stalled, trial, None, options, null, lines.append)
+    starts = restart_points(trial, ["input_offset.offset"], loop.SCREEN_RESTARTS, predictor.design.seed)
+    assert start.values in [s.values for s in starts] and start.values["inertia.motor"] == trial.values["inertia.motor"]
+    assert training_ratio(predictor, res, null) < 0.1 and res.cost_test < 0.1 * null.cost_test
+    assert "did not converge" in lines[0]
+    # nothing to restart where the candidate has no parameter of its own
+    assert loop._restarted_screen(predictor, "sticking_friction", stalled, trial, None, options, null,
+                                  lines.append) == (stalled, trial)
+
+
+def test_a_screen_another_start_took_below_the_model_still_descending_goes_on_over_all_windows(predictor,
+                                                                                              monkeypatch):
+    """The README route's play in its last round: from the catalogue's start its screen ends 1.53
+    times above the model in training; another start ends at 0.56 times it, still descending at
+    the iteration cap, so its subset point ranks nothing (held-out 1.14 times the model's): it
+    goes on over all windows beside the best, where a stalled screen that gains as little
+    would be left on the subset."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    from mjjoint.identify.fit import FitResult
+
+    def result(structure, cost_test, loss, start_loss=1.0, capped=False):
+        part = SimpleNamespace(loss=loss, start_loss=start_loss, structure=structure)
+        return FitResult(structure, float("nan"), cost_test, {}, {}, coarse_capped=capped, partial=part)
+
+    def fake_fit(pred, s, names=None, **kw):
+        if "friction_asymmetry" in s.effects:
+            return result(s, 0.5, 0.5)  # the round's best
+        if "input_offset" in s.effects:
+            return result(s, 0.99, 1.53)  # stalled: above the model in training
+        return result(s, 1.0, 1.0)  # the null
+
+    restarted = []
+
+    def fake_fits_from(pred, starts, names=None, **kw):
+        restarted.append(len(starts))
+        return [result(s, 0.98, 0.56 if i == 1 else 1.6, capped=True) for i, s in enumerate(starts)]
+
+    n = len(predictor.train)
+    monkeypatch.setattr(loop, "fit", fake_fit)
+    monkeypatch.setattr(loop, "fits_from", fake_fits_from)
+    monkeypatch.setattr(loop, "finish", lambda pred, r: dataclasses.replace(
+        r, partial=None, cost_train=r.partial.loss, train_costs=np.full(n, r.partial.loss)))
+    ref = FitResult(Structure.create(BASE, DriveSpec(), 1.0), 1.0, 1.0, {}, {}, train_costs=np.ones(n))
+    options = DiagnoseOptions(candidates=("friction_asymmetry", "input_offset"))
+
+    def screen():
+        return _screen(predictor, ref, {}, options, lambda m: None, ScreenClock(1), {}, set())
+    _, finished, rest, above = screen()
+    assert restarted == [loop.SCREEN_RESTARTS] and set(finished) == {"friction_asymmetry", "input_offset"}
+    assert finished["input_offset"][1].cost_train == 0.56 and not above
+    # still descending but above the model even so: it stays on the subset, listed as not converged
+    monkeypatch.setattr(loop, "fits_from", lambda pred, starts, names=None, **kw: [
+        result(s, 0.98, 1.2, capped=True) for s in starts])
+    _, finished, rest, above = screen()
+    assert set(finished) == {"friction_asymmetry"} and list(above) == ["input_offset"] and above["input_offset"] == 1.2

@@ -75,9 +75,10 @@ explained to the noise, nothing missing; effects found and the rest explained; e
 a mismatch remains (which signal, how far above its floor, where and under which conditions,
 and the last round's best candidate with the tests it failed);
 nothing in the catalogue explains the located mismatch. Parameters the final fit left on a
-bound are named as stand-ins. A candidate whose screen ended above the model it extends (its
-fit did not converge: the candidate contains that model) is not ruled out by it; while the
-model misses its floor, the verdict names such screens (``unresolved_screens``).
+bound are named as stand-ins. A candidate whose screen's training cost ended above the model it
+extends (its fit did not converge: the candidate contains that model) is screened again from
+other starts (``_restarted_screen``) and, where it still ends there, is not ruled out by it;
+while the model misses its floor, the verdict names such screens (``not_converged``).
 
 Effects that act mainly under one operating condition (``Effect.acts_under``: 2SEP's pre-sliding and
 lag, Stribeck's break-away, after motor velocity reversals) are also rank-tested on the held-out
@@ -112,7 +113,8 @@ from scipy.stats import wilcoxon
 
 from ..assets.stability import check_model_stability, stable_timesteps
 from ..identify.effects import EFFECTS, GENERIC, ON_REQUEST, base_params, incompatible, plant_effects
-from ..identify.fit import FitResult, check_intervals, finish, fit, restart_points, window_costs
+from ..identify.fit import (FitResult, check_intervals, finish, fit, fits_from, fitted_on_both, lowest, restart_points,
+                            training_ratio, window_costs)
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .clock import Phases, ScreenClock
@@ -194,7 +196,7 @@ class Diagnosis:
     explained: bool = False
     stand_ins: dict[str, str] = field(default_factory=dict)   # parameter -> which bound it sits on
     unstable: dict[str, str] = field(default_factory=dict)    # screened candidate -> why unstable
-    unresolved: dict[str, float] = field(default_factory=dict)  # candidate -> its screen's held-out cost / the reference's
+    unresolved: dict[str, float] = field(default_factory=dict)  # candidate -> its screen's training cost / the reference's
     revisions: list = field(default_factory=list)  # diagnosis.revise.Revision: swaps, removals, stand-ins refused
     phases: dict = field(default_factory=dict)  # where the rollouts and time went (``clock.Phases.as_dict``)
     signs: dict = field(default_factory=dict)  # the recording's own signs (``recorded_signs``): name -> description
@@ -419,7 +421,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         with phases("noise floor"):
             floor = noise_floor(predictor, current.structure)
         floor_cost = floor.cost()
-        ref, screened, rest = _screen(predictor, current, where, search, say, clock, unstable, stepped, signs)
+        ref, screened, rest, above = _screen(predictor, current, where, search, say, clock, unstable, stepped, signs)
         if not screened:
             break
         with phases("acceptance tests"):
@@ -430,8 +432,8 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                    f"fails while the model misses {far:.3g} times its noise floor")
             say(f"  best candidate {choice.best} {why}; screening again with every parameter free, "
                 "from the model refitted")
-            ref, screened, rest = _screen(predictor, current, where, search, say, clock, unstable, stepped, signs,
-                                          free_all=True)
+            ref, screened, rest, above = _screen(predictor, current, where, search, say, clock, unstable, stepped,
+                                                 signs, free_all=True)
             if ref.cost_test < current.cost_test:  # the same structure, fitted further
                 current = history[-1] = ref
                 initial = initial if steps else ref
@@ -445,13 +447,13 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         if generic:
             say(f"  no catalogued effect explains the located residual: screening the generic forms it "
                 f"points to ({', '.join(generic)})")
-            g_ref, g_screened, g_rest = _screen(predictor, current, where,
-                                                dataclasses.replace(options, candidates=generic), say, clock, unstable,
-                                                stepped)
+            g_ref, g_screened, g_rest, g_above = _screen(predictor, current, where,
+                                                         dataclasses.replace(options, candidates=generic), say, clock,
+                                                         unstable, stepped)
             with phases("acceptance tests"):
                 g_choice = _decide(predictor, g_ref, g_screened, options, floor_cost)
             if not g_choice.failed:
-                choice, ref, screened, rest, screen = g_choice, g_ref, g_screened, g_rest, "generic form"
+                choice, ref, screened, rest, above, screen = g_choice, g_ref, g_screened, g_rest, g_above, "generic form"
             else:
                 generic_rejected = rejection(g_choice, "the best generic form")
                 say(f"  {generic_rejected}")
@@ -462,7 +464,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             if pair is not None and not pair.failed:
                 choice = pair  # its steps' screen says "together with" the other
         best, cand, gain = choice.best, choice.cand, choice.gain
-        unresolved = unresolved_screens({**rest, **screened}, ref.cost_test)
+        unresolved = above
         if choice.failed:
             rejected = rejection(choice) + (f"; {generic_rejected}" if generic_rejected else "")
             say(f"best candidate {best}: held-out cost {-100 * gain:+.1f} % "
@@ -613,16 +615,18 @@ def stand_ins(result: FitResult) -> dict[str, str]:
     return out
 
 
-# A screen whose held-out cost ends this factor above the model it extends did not converge: the
-# candidate contains that model (a Bouc-Wen gear with mu = 1 is the linear spring, a stiff rod the
-# rigid one), so its own optimum is at most as high; the screen says nothing against it.
-UNRESOLVED_RATIO = 1.1
+# A screen whose least-squares training cost ends this factor above the model it extends did not
+# converge: the candidate contains that model (a Bouc-Wen gear with mu = 1 is the linear spring, a
+# play of zero width the rigid gear), so its own optimum is at most as high, to within its bounds;
+# the screen says nothing against it. A screen that ends above it on the held-out windows only
+# did converge: what it fitted does not carry over, which is evidence against it.
+UNRESOLVED_RATIO = 1.02
 
 
-def unresolved_screens(screened: dict[str, tuple[float, FitResult]], ref_cost: float) -> dict[str, float]:
-    """{candidate: held-out cost over ``ref_cost``} of the screens that ended UNRESOLVED_RATIO or
-    more above the reference they extend, worst first (unstable ones included)."""
-    ratios = {k: float(c / ref_cost) if np.isfinite(c) else float("inf") for k, (c, _) in screened.items()}
+def not_converged(ratios: dict[str, float]) -> dict[str, float]:
+    """Of the screens' training costs over the model each extends ({candidate: ratio}), those
+    UNRESOLVED_RATIO or more above it, worst first (unstable ones, NaN, as infinite)."""
+    ratios = {k: r if np.isfinite(r) else float("inf") for k, r in ratios.items()}
     return dict(sorted(((k, r) for k, r in ratios.items() if r >= UNRESOLVED_RATIO), key=lambda kv: -kv[1]))
 
 
@@ -653,7 +657,7 @@ def _verdict(steps: list[Step], initial: FitResult, final: FitResult, floor: Flo
     if unresolved and not explained:
         # "No catalogued effect explains it" holds only for the candidates whose fits converged.
         text += ("; not ruled out, their screens ended above the model they extend (fits that did not "
-                 "converge): " + ", ".join(f"{k.replace(BUNDLE, ' + ')} ({r:.3g}x its held-out cost)"
+                 "converge): " + ", ".join(f"{k.replace(BUNDLE, ' + ')} ({r:.3g}x its training cost)"
                                           for k, r in unresolved.items()))
     revised = [r.line for r in revisions if r.kind != "stand-in"]
     if revised:
@@ -735,9 +739,11 @@ CONTINUE_MAX = 3
 
 def _screen(predictor: Predictor, current: FitResult, where: dict, options: DiagnoseOptions, say,
             clock: ScreenClock, unstable: dict[str, str], stepped: set[str], signs=(), free_all: bool = False
-            ) -> tuple[FitResult, dict[str, tuple[float, FitResult]], dict[str, float]]:
+            ) -> tuple[FitResult, dict[str, tuple[float, FitResult]], dict[str, tuple[float, FitResult]],
+                       dict[str, float]]:
     """(the fit candidates are held against, {effect: (held-out cost, fit)} of the screens
-    finished over all training windows, {effect: held-out cost} of those left on the subset) of
+    finished over all training windows, the same of those left on the subset, {effect: training
+    cost over the model it extends} of the screens that did not converge (``not_converged``)) of
     one screening.
 
     ``signs``: the recording's (``recorded_signs``), which open the screen to the effects on
@@ -749,7 +755,8 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     from there and is held against that refit (module doc). A screen whose prediction is
     unstable is screened again at the timestep its stability check asks for, and why it was goes
     to ``unstable``; one that ends far above the null it nests, at finer steps (``_refined``; a
-    candidate that gains nothing there goes to ``stepped`` and is not refined again).
+    candidate that gains nothing there goes to ``stepped`` and is not refined again); one whose
+    training cost ends above the null's, from other starts (``_restarted_screen``).
     Screens run in two stages (CONTINUE_SHARE); a screen left on the subset reports the held-out
     cost of the reference scaled by its subset cost over the null's.
     """
@@ -764,13 +771,13 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     say(f"round {clock.round} of {clock.rounds}: screening {len(trials)} candidate fits"
         + (" with every parameter free" if free_all else "") + ", first on a subset of the windows")
     if not trials:
-        return ref, {}, {}
+        return ref, {}, {}, {}
     base_names = None if free_all else [p.name for p in base_params(ref.structure.nominal)]
     with clock.phases("screens, subset"):
         null = fit(predictor, ref.structure, base_names, max_iter=options.screen_iter, subset_only=True)
     firsts: list[FitResult] = []
     starts: list[Structure] = []
-    descending: list[int] = []  # screens taken to a finer step that still descend (``continued``)
+    descending: list[int] = []  # screens taken to a finer step or another start that still descend (``continued``)
     best_of: dict[str, FitResult] = {}  # each candidate's best subset screen so far (``_nested``)
     for i, (name, values, settings) in enumerate(trials, 1):
         start = time.perf_counter()
@@ -793,6 +800,12 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
                     descending.append(i - 1)
             tried = trial
             res, trial = _nested(predictor, name, values, settings, res, trial, best_of, freed, options)
+            if training_ratio(predictor, res, null, from_start=True) >= UNRESOLVED_RATIO:
+                res, again = _restarted_screen(predictor, name, res, trial, freed, options, null, say)
+                if (again is not trial and res.coarse_capped and i - 1 not in descending
+                        and training_ratio(predictor, res, null, from_start=True) < 1.0):
+                    descending.append(i - 1)
+                trial = again
         if name not in best_of or res.cost_test < best_of[name].cost_test:
             best_of[name] = res
         clock.record(time.perf_counter() - start)
@@ -801,7 +814,8 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         label = f"{name} {settings}" if settings else name
         say(f"  screened {label} on the subset: held-out cost {null.cost_test:.4g} -> {res.cost_test:.4g}"
             + (", still descending at the iteration cap" if res.coarse_capped else "")
-            + (", started from its prerequisites' screen" if trial is not tried else "")
+            + (", started from its prerequisites' screen" if trial is not tried and trial.effects != tried.effects
+               else ", from another start" if trial is not tried else "")
             + f" ({clock.status(i, len(trials))})")
     go_on = continued([r.cost_test for r in firsts], null.cost_test, [t[0] for t in trials], descending)
     screened: dict[str, tuple[float, FitResult]] = {}
@@ -826,7 +840,9 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
             cost = ref.cost_test * res.cost_test / null.cost_test if null.cost_test > 0 else res.cost_test
             if cost < rest.get(name, (np.inf, None))[0]:
                 rest[name] = (cost, res)
-    return ref, screened, rest
+    ratios = {**{k: training_ratio(predictor, res, null, from_start=True) for k, (_, res) in rest.items()},
+              **{k: training_ratio(predictor, res, ref) for k, (_, res) in screened.items()}}
+    return ref, screened, rest, not_converged(ratios)
 
 
 def continued(costs: list[float], null: float, names: list[str], descending=()) -> list[int]:
@@ -834,8 +850,9 @@ def continued(costs: list[float], null: float, names: list[str], descending=()) 
     (CONTINUE_SHARE): the best, and those that gain on the null at least CONTINUE_SHARE of what the
     best gains, at most CONTINUE_MAX; with each bundle the prerequisite screened alone, which
     ``_decide`` prefers when it passes. The ``descending`` go on too: screens a finer step brought
-    near the null whose subset phase still descended at its iteration cap, so their subset point
-    ranks nothing (a rod's modes, started at the located resonance, end far from there)."""
+    near the null, or another start below it in training (``_restarted_screen``), whose subset
+    phase still descended at its iteration cap, so their subset point ranks nothing (a rod's
+    modes, started at the located resonance, end far from there)."""
     order = sorted(range(len(costs)), key=lambda i: costs[i] if np.isfinite(costs[i]) else np.inf)
     gains = [null - c if np.isfinite(c) else -np.inf for c in costs]
     best = gains[order[0]]
@@ -845,6 +862,30 @@ def continued(costs: list[float], null: float, names: list[str], descending=()) 
         alone = BUNDLE.join(parts(names[i])[:-1])
         keep += [j for j, n in enumerate(names) if alone and n == alone and j not in keep]
     return sorted(keep)
+
+
+# A screen that ends this many times above the model it extends did not converge (module doc);
+# it is fitted again from this many seeded starts of the candidate's own parameters
+# (``identify.fit.restart_points``), the lowest training cost kept.
+SCREEN_RESTARTS = 3
+
+
+def _restarted_screen(predictor: Predictor, name: str, res: FitResult, trial: Structure, freed,
+                      options: DiagnoseOptions, null: FitResult, say) -> tuple[FitResult, Structure]:
+    """(the subset screen, its start) of candidate ``name``, whose training cost ended
+    UNRESOLVED_RATIO or more above the model it extends (where the ``null`` started): fitted
+    again from SCREEN_RESTARTS starts of its own parameters, the others where ``trial`` has them;
+    the lowest training cost kept (the held-out windows stay for the acceptance tests)."""
+    own = [p.name for e in parts(name) for p in EFFECTS[e].params]
+    if not own:
+        return res, trial
+    starts = restart_points(trial, own, SCREEN_RESTARTS, predictor.design.seed)
+    fits = fits_from(predictor, starts, freed, max_iter=options.screen_iter, subset_only=True)
+    best = lowest([res] + fits)
+    ratio = lambda r: training_ratio(predictor, r, null, from_start=True)  # noqa: E731
+    say(f"  screened {name}: training cost {ratio(res):.3g}x the model it extends, a fit that did not converge; "
+        f"the best of {len(starts)} other starts {ratio(best):.3g}x")
+    return best, next((s for s, f in zip(starts, fits) if f.structure is best.structure), trial)
 
 
 def _nested(predictor: Predictor, name: str, values: dict, settings: dict, res: FitResult, trial: Structure,
@@ -961,12 +1002,13 @@ def restarted(predictor: Predictor, result: FitResult, floor: Floor, options: Di
     if not starts:
         return result
     with phases("refit after addition, from the recording's start"):
-        again = fit(predictor, starts[0], max_iter=options.fit_iter, progress=iterations)
-    keep = again.cost_train < result.cost_train
+        (again,) = fits_from(predictor, starts, max_iter=options.fit_iter, progress=iterations)
+    kept = lowest([result, again])
     say(f"  {', '.join(result.on_bound)} on a bound {far:.3g} times the noise floor away: refitted from the "
         f"recording's start, training cost {result.cost_train:.4g} -> {again.cost_train:.4g} "
-        f"(held-out {result.cost_test:.4g} -> {again.cost_test:.4g}): {'kept' if keep else 'not kept'}")
-    return again if keep else result
+        f"(held-out {result.cost_test:.4g} -> {again.cost_test:.4g}): "
+        f"{'kept' if kept.structure is again.structure else 'not kept'}")
+    return kept
 
 
 def _at_step(predictor: Predictor, structure: Structure, timestep: float) -> Structure:
@@ -1190,7 +1232,7 @@ def _consistency(predictor: Predictor, effect: str, before: Structure, after: St
 def _bic_lower(predictor: Predictor, ref: FitResult, cand: FitResult) -> bool:
     """Whether ``cand`` has the lower BIC on the training windows both fits were fitted on: a
     window one of them left out (its start open to that model) holds no evidence between them."""
-    keep = ~np.isin(predictor.train, ref.left_out + cand.left_out)
+    keep = fitted_on_both(predictor, ref, cand)
     n = int(keep.sum()) * len(predictor.cols) * len(predictor.signals)
     bic = [_bic(float(np.mean(f.train_costs[keep])), n, len(f.structure.params)) for f in (cand, ref)]
     return bic[0] < bic[1]

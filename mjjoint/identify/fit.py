@@ -291,24 +291,26 @@ def gauss_newton_step_se(jac: np.ndarray, r: np.ndarray, x: np.ndarray, lo: np.n
     return float(np.sqrt(d2 / max(residual_variance(r, x.size), 1e-300)))
 
 
-def _lm(obj: Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndarray, int, bool]:
-    """(x, iterations, capped): mujoco.minimize's LM from x0 until the step rule, its xtol or
-    max_iter; ``capped`` where max_iter stopped it, the cost still falling."""
-    iterations = 0
+def _lm(obj: Objective, x0: np.ndarray, max_iter: int, on_iter) -> tuple[np.ndarray, int, bool, float]:
+    """(x, iterations, capped, loss): mujoco.minimize's LM from x0 until the step rule, its xtol
+    or max_iter; ``capped`` where max_iter stopped it, the cost still falling; ``loss`` its
+    objective per residual at x."""
+    iterations, rr = 0, np.nan
 
     def count(log):
-        nonlocal iterations
-        iterations = len(log)
-        on_iter(iterations, 2.0 * float(log[-1].objective), obj.m)
+        nonlocal iterations, rr
+        iterations, rr = len(log), 2.0 * float(log[-1].objective)
+        on_iter(iterations, rr, obj.m)
     try:
         x, _ = minimize.least_squares(x0, obj.residual, bounds=[obj.lo, obj.hi], jacobian=obj.jacobian,
                                       max_iter=max_iter, xtol=XTOL, mu_min=MU_MIN,
                                       mu_factor=MU_FACTOR, verbose=minimize.Verbosity.SILENT, iter_callback=count)
     except Converged:
         on_iter(iterations + 1, obj.costs[-1], obj.m)
-        return obj.jac_at[0], iterations + 1, False
-    # The log holds the start too: max_iter + 1 entries where the cap stopped the LM.
-    return x.reshape(-1), iterations, iterations > max_iter
+        return obj.jac_at[0], iterations + 1, False, obj.costs[-1] / obj.m
+    # The log holds the start too: max_iter + 1 entries where the cap stopped the LM; its last
+    # entry is the loss at the returned point.
+    return x.reshape(-1), iterations, iterations > max_iter, rr / obj.m
 
 
 def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int = 25,
@@ -346,15 +348,50 @@ def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int
         tried.append(_fit_once(predictor, first.structure, names, max_iter, windows, progress, robust))
         tried[-1].seconds += first.seconds
         tried[-1].rollouts += first.rollouts
-    best = min(tried, key=lambda r: r.cost_train)
+    best = lowest(tried)
     if best.on_bound or best.cost_train > FAR_ABOVE * predictor.noise_floor:
-        for start in restart_points(structure, names, restarts, predictor.design.seed):
-            tried.append(_fit_once(predictor, start, names, max_iter, windows, progress, robust))
-        best = min(tried, key=lambda r: r.cost_train)
-    best.starts = len(tried)
-    best.seconds = sum(r.seconds for r in tried)
-    best.rollouts = sum(r.rollouts for r in tried)
+        tried += fits_from(predictor, restart_points(structure, names, restarts, predictor.design.seed), names,
+                           max_iter=max_iter, windows=windows, progress=progress, robust=robust)
+        best = lowest(tried)
     return best
+
+
+def fits_from(predictor: Predictor, starts: list[Structure], names=None, *, max_iter: int = 25,
+              windows: np.ndarray | None = None, progress=None, robust: bool = False,
+              subset_only: bool = False) -> list[FitResult]:
+    """One fit of ``names`` from each of ``starts`` (``restart_points``), as ``fit`` without
+    restarts fits."""
+    return [_fit_once(predictor, s, names, max_iter, windows, progress, robust, subset_only) for s in starts]
+
+
+def lowest(tried: list[FitResult]) -> FitResult:
+    """The fit of ``tried`` (one structure's, from several starts) that ends at the lowest
+    training cost: its subset phase's loss where they stopped after it (``subset_only``); its
+    ``starts``, ``seconds`` and ``rollouts`` count all of them."""
+    best = min(tried, key=lambda r: r.partial.loss if r.partial is not None else r.cost_train)
+    return dataclasses.replace(best, starts=sum(r.starts for r in tried), seconds=sum(r.seconds for r in tried),
+                               rollouts=sum(r.rollouts for r in tried))
+
+
+def fitted_on_both(predictor: Predictor, a: FitResult, b: FitResult) -> np.ndarray:
+    """Which training windows both fits were fitted on: one a fit left out (its start open to
+    that model) holds no evidence between them."""
+    return ~np.isin(predictor.train, a.left_out + b.left_out)
+
+
+def training_ratio(predictor: Predictor, result: FitResult, reference: FitResult, from_start: bool = False) -> float:
+    """``result``'s least-squares training cost over ``reference``'s on the windows both were
+    fitted on: their subset phase's where both stopped after it (``subset_only``; with
+    ``from_start``, over the loss the reference began that phase at), else the training windows
+    neither left out. A fit of a structure that contains the reference's, with at least its
+    parameters free (or started where the reference started, ``from_start``), cannot end above 1
+    where it converged."""
+    if result.partial is not None and reference.partial is not None:
+        return float(result.partial.loss / (reference.partial.start_loss if from_start else reference.partial.loss))
+    if result.partial is not None or reference.partial is not None:
+        raise ValueError("training_ratio: a fit stopped after its subset phase compares only with another one")
+    keep = fitted_on_both(predictor, result, reference)
+    return float(np.mean(result.train_costs[keep]) / np.mean(reference.train_costs[keep]))
 
 
 def refinements(structure: Structure) -> set[str]:
@@ -396,6 +433,8 @@ class _Partial:
     done: int
     max_iter: int
     robust: bool
+    loss: float  # the subset phase's objective per residual at x
+    start_loss: float  # the same at the start
 
 
 def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, windows, progress,
@@ -416,13 +455,14 @@ def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, 
     names = [p.name for p in structure.params if wanted is None or p.name in wanted]
     lo, hi = structure.bounds(names)
     x = np.clip(structure.vector(names), lo, hi)
-    done, capped = 0, False
+    done, capped, loss, start_loss = 0, False, np.nan, np.nan
     subset = coarse_windows(windows, predictor.design.seed)
     if subset is not None:
         scale = _scale_at(predictor, structure, names, robust, x, subset)
         coarse = Objective(predictor, structure, names, subset, lo, hi, COARSE_SE, scale)
-        x, done, capped = _lm(coarse, x, max_iter, _reporter(progress, 0))
-    state = _Partial(structure, names, windows, lo, hi, x, done, max_iter, robust)
+        x, done, capped, loss = _lm(coarse, x, max_iter, _reporter(progress, 0))
+        start_loss = coarse.costs[0] / coarse.m if coarse.costs else loss  # the first Jacobian's point is the start
+    state = _Partial(structure, names, windows, lo, hi, x, done, max_iter, robust, loss, start_loss)
     if subset_only and subset is not None:
         best = structure.from_vector(x, names)
         (pred,) = predictor.predict([best], predictor.test)
@@ -466,7 +506,7 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
         scale = _scale_at(predictor, structure, names, st.robust, x, windows)
         for _ in range(SCALE_ROUNDS):
             obj, obj_scale = Objective(predictor, structure, names, windows, lo, hi, STEP_SE, scale), scale
-            x, k, _ = _lm(obj, x, st.max_iter, _reporter(progress, done))
+            x, k, _, _ = _lm(obj, x, st.max_iter, _reporter(progress, done))
             done += k
             new = None if scale is None else _scale_at(predictor, structure, names, st.robust, x, windows, obj)
             if new is None or new > scale / 2:
