@@ -211,10 +211,14 @@ def test_a_screen_another_start_took_below_the_model_still_descending_goes_on_ov
     ref = FitResult(Structure.create(BASE, DriveSpec(), 1.0), 1.0, 1.0, {}, {}, train_costs=np.ones(n))
     options = DiagnoseOptions(candidates=("friction_asymmetry", "input_offset"))
 
+    lines = []
+
     def screen():
-        return _screen(predictor, ref, {}, options, lambda m: None, ScreenClock(1), {}, set())
+        return _screen(predictor, ref, {}, options, lines.append, ScreenClock(1), {}, set())
     _, finished, rest, above = screen()
     assert restarted == [loop.SCREEN_RESTARTS] and set(finished) == {"friction_asymmetry", "input_offset"}
+    assert any(line.startswith("  screened input_offset on the subset") and "from another start" in line
+               for line in lines)
     assert finished["input_offset"][1].cost_train == 0.56 and not above
     # still descending but above the model even so: it stays on the subset, listed as not converged
     monkeypatch.setattr(loop, "fits_from", lambda pred, starts, names=None, **kw: [

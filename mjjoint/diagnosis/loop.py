@@ -756,7 +756,8 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     unstable is screened again at the timestep its stability check asks for, and why it was goes
     to ``unstable``; one that ends far above the null it nests, at finer steps (``_refined``; a
     candidate that gains nothing there goes to ``stepped`` and is not refined again); one whose
-    training cost ends above the null's, from other starts (``_restarted_screen``).
+    training cost ends above where the null started (the model it extends), from other starts
+    (``_restarted_screen``).
     Screens run in two stages (CONTINUE_SHARE); a screen left on the subset reports the held-out
     cost of the reference scaled by its subset cost over the null's.
     """
@@ -798,13 +799,17 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
                 res, trial = _refined(predictor, trial, res, freed, options, null.cost_test, name, say, stepped)
                 if name not in stepped and res.coarse_capped:
                     descending.append(i - 1)
-            tried = trial
+            tried, how = trial, ""
             res, trial = _nested(predictor, name, values, settings, res, trial, best_of, freed, options)
+            if trial is not tried:
+                how = ", started from its prerequisites' screen"
             if training_ratio(predictor, res, null, from_start=True) >= UNRESOLVED_RATIO:
                 res, again = _restarted_screen(predictor, name, res, trial, freed, options, null, say)
-                if (again is not trial and res.coarse_capped and i - 1 not in descending
-                        and training_ratio(predictor, res, null, from_start=True) < 1.0):
-                    descending.append(i - 1)
+                if again is not trial:
+                    how = ", from another start"
+                    if (res.coarse_capped and i - 1 not in descending
+                            and training_ratio(predictor, res, null, from_start=True) < 1.0):
+                        descending.append(i - 1)
                 trial = again
         if name not in best_of or res.cost_test < best_of[name].cost_test:
             best_of[name] = res
@@ -814,8 +819,7 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
         label = f"{name} {settings}" if settings else name
         say(f"  screened {label} on the subset: held-out cost {null.cost_test:.4g} -> {res.cost_test:.4g}"
             + (", still descending at the iteration cap" if res.coarse_capped else "")
-            + (", started from its prerequisites' screen" if trial is not tried and trial.effects != tried.effects
-               else ", from another start" if trial is not tried else "")
+            + how
             + f" ({clock.status(i, len(trials))})")
     go_on = continued([r.cost_test for r in firsts], null.cost_test, [t[0] for t in trials], descending)
     screened: dict[str, tuple[float, FitResult]] = {}
@@ -864,9 +868,9 @@ def continued(costs: list[float], null: float, names: list[str], descending=()) 
     return sorted(keep)
 
 
-# A screen that ends this many times above the model it extends did not converge (module doc);
-# it is fitted again from this many seeded starts of the candidate's own parameters
-# (``identify.fit.restart_points``), the lowest training cost kept.
+# A screen whose training cost ends UNRESOLVED_RATIO above the model it extends did not converge
+# (module doc); it is fitted again from this many seeded starts of the candidate's own
+# parameters (``identify.fit.restart_points``), the lowest training cost kept.
 SCREEN_RESTARTS = 3
 
 
