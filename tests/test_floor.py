@@ -201,6 +201,16 @@ def test_the_twins_windowing_counts_only_up_to_a_multiple_of_what_the_recording_
     from mjjoint.report.summary import judged_lines
     lines = judged_lines({"noise_floor": floor.as_dict(), "explained": False}, {"tau": 0.05}, within_twin)
     assert lines[0].endswith("floor 0.0200 (twin 0.0280)") and lines[-1] == "explained to the noise: no"
+    # A signal reported but not scored (``--fit-signals``) is judged, and said to be unscored.
+    both = Floor(noise={"q": 0.0, "delta": 0.0}, quantum={"q": 0.0, "delta": 0.0},
+                 measurement={"q": 0.01, "delta": 0.02}, twin={}, signals=("q", "delta"), scored=("q",))
+    text = mismatch(SimpleNamespace(nrmse_test={"q": 0.08, "delta": 13.0}), both, {})
+    assert text.startswith("delta held-out NRMSE 13 against a floor of 0.02 (a signal the fit does not score), "
+                           "q held-out NRMSE 0.08 against a floor of 0.01;")
+    # the link angle is scored through the deflection
+    three = Floor(noise={"theta": 0.0, "delta": 0.0}, quantum={"theta": 0.0, "delta": 0.0},
+                  measurement={"theta": 0.01, "delta": 0.02}, twin={}, signals=("theta", "delta"), scored=("delta",))
+    assert "does not score" not in mismatch(SimpleNamespace(nrmse_test={"theta": 0.3, "delta": 0.5}), three, {})
     # A twin within the trusted multiple is the floor as it is.
     near = dataclasses.replace(floor, twin={"tau": 0.015})
     assert near.nrmse["tau"] == 0.015 and near.capped == () and "twin" not in mismatch(

@@ -208,6 +208,33 @@ def test_a_stribeck_velocity_below_what_the_recording_resolves_is_a_stand_in(mon
                     DiagnoseOptions(), 1e-6, lambda line: None) == (None, None)
 
 
+def test_a_first_effect_with_every_parameter_on_a_bound_is_a_stand_in(monkeypatch):
+    """The out-of-regime control (seed 0: LuGre friction, a linear gear): 2SEP passes first with
+    k and b both on their bounds (10 1/rad, 1e4 N m/rad), neither an estimate of 2SEP: it is
+    refused and the model without it refitted is offered in its place. With one of its
+    parameters inside its range the first effect stands, as an effect named after it would not."""
+    from mjjoint.diagnosis import revise as rv
+    _carries_its_gain(monkeypatch)
+    freer = SimpleNamespace(cost_test=0.00160)
+    monkeypatch.setattr(rv, "_refit_without", lambda *a: freer)
+    monkeypatch.setattr(rv, "_robust_kept", lambda predictor, result, options: result)
+    before = SimpleNamespace(cost_test=0.00164)
+
+    def twosep(*on_bound):
+        return SimpleNamespace(cost_test=0.00121, on_bound=list(on_bound), structure=SimpleNamespace(
+            values={"dynamic_friction.k": 10.0, "dynamic_friction.b": 1e4}))
+
+    def guard(after, named):
+        return stand_in(_RESOLVING, before, after, _step("dynamic_friction"), named, DiagnoseOptions(), 1e-6,
+                        lambda line: None)
+    refusal, kept = guard(twosep("dynamic_friction.k", "dynamic_friction.b"), [])
+    assert refusal.kind == "stand-in" and "(dynamic_friction.k = 10, dynamic_friction.b = 1e+04)" in refusal.reason
+    assert kept is freer
+    assert guard(twosep("dynamic_friction.b"), []) == (None, None)
+    refusal, _ = guard(twosep("dynamic_friction.b"), [_step("transmission_hysteresis")])
+    assert refusal.kind == "stand-in" and "(dynamic_friction.b = 1e+04)" in refusal.reason
+
+
 @pytest.mark.slow
 def test_an_effect_the_later_ones_made_redundant_is_removed(backlash_recording):
     """An input offset named first (the truth has none), then the play: given the play, the

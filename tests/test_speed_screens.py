@@ -53,6 +53,30 @@ def test_too_few_windows_for_a_subset_phase_give_the_whole_fit():
         fit(pred, start, subset_only=True, restarts=1)
 
 
+def test_a_whole_fit_keeps_the_cost_it_started_at_which_bounds_a_screen_started_there():
+    """Where the windows are too few for a subset phase, a screen is a whole fit; the model it
+    extends, fitted the same way, keeps the least-squares cost it started at on all training
+    windows. A screen started there with fewer of the model's parameters free can end above that
+    model's optimum without failing to converge, but not above its start: ``training_ratio``
+    compares with the start where asked."""
+    from mjjoint.identify.fit import training_ratio, window_costs
+
+    pred = Predictor(Measured.from_recording(closed_loop_recording(6.0), 1.0, output=False), WindowDesign(length=0.5))
+    base = Structure.create(BASE, DriveSpec(), 1.0)
+    null = fit(pred, base, max_iter=5, subset_only=True)
+    assert null.partial is None
+    assert null.start_cost == pytest.approx(np.mean(window_costs(pred, base, pred.train)), rel=1e-12)
+    assert null.cost_train < null.start_cost
+    # a screen freeing only the candidate's own parameter, the base held at its start
+    held = fit(pred, loop.with_candidate(base, "input_offset"), ["input_offset.offset"], max_iter=5)
+    assert training_ratio(pred, held, null, from_start=True) == pytest.approx(held.cost_train / null.start_cost)
+    assert training_ratio(pred, held, null, from_start=True) < 1.0
+    assert training_ratio(pred, held, null) >= loop.UNRESOLVED_RATIO  # against the optimum: a false alarm
+    assert np.isnan(fit(pred, base, max_iter=2, robust=True).start_cost)
+    with pytest.raises(ValueError, match="start cost"):
+        training_ratio(pred, held, fit(pred, base, max_iter=2, robust=True), from_start=True)
+
+
 def test_which_subset_screens_go_on():
     names = ["a", "b", "c", "d", "e"]
     # The best always; others that gain at least half of what the best gains over the null.
@@ -174,6 +198,29 @@ def test_a_screen_ending_above_the_model_it_extends_in_training_is_fitted_again_
                                   lines.append) == (stalled, trial)
 
 
+def _screen_result(structure, cost_test, loss, capped=False):
+    """A subset screen as ``_screen`` sees it: held-out cost, subset loss (the null started at 1)."""
+    from types import SimpleNamespace
+
+    from mjjoint.identify.fit import FitResult
+    part = SimpleNamespace(loss=loss, start_loss=1.0, structure=structure)
+    return FitResult(structure, float("nan"), cost_test, {}, {}, coarse_capped=capped, partial=part)
+
+
+def _faked_screens(predictor, monkeypatch, fake_fit, fake_fits_from):
+    """``_screen``'s fits replaced by ``fake_fit``/``fake_fits_from``, a finished screen's training
+    cost its subset loss; returns the reference (the drive's base at a training cost of 1)."""
+    import dataclasses
+
+    from mjjoint.identify.fit import FitResult
+    n = len(predictor.train)
+    monkeypatch.setattr(loop, "fit", fake_fit)
+    monkeypatch.setattr(loop, "fits_from", fake_fits_from)
+    monkeypatch.setattr(loop, "finish", lambda pred, r: dataclasses.replace(
+        r, partial=None, cost_train=r.partial.loss, train_costs=np.full(n, r.partial.loss)))
+    return FitResult(Structure.create(BASE, DriveSpec(), 1.0), 1.0, 1.0, {}, {}, train_costs=np.ones(n))
+
+
 def test_a_screen_another_start_took_below_the_model_still_descending_goes_on_over_all_windows(predictor,
                                                                                               monkeypatch):
     """The README route's play in its last round: from the catalogue's start its screen ends 1.53
@@ -181,14 +228,7 @@ def test_a_screen_another_start_took_below_the_model_still_descending_goes_on_ov
     the iteration cap, so its subset point ranks nothing (held-out 1.14 times the model's): it
     goes on over all windows beside the best, where a stalled screen that gains as little
     would be left on the subset."""
-    import dataclasses
-    from types import SimpleNamespace
-
-    from mjjoint.identify.fit import FitResult
-
-    def result(structure, cost_test, loss, start_loss=1.0, capped=False):
-        part = SimpleNamespace(loss=loss, start_loss=start_loss, structure=structure)
-        return FitResult(structure, float("nan"), cost_test, {}, {}, coarse_capped=capped, partial=part)
+    result = _screen_result
 
     def fake_fit(pred, s, names=None, **kw):
         if "friction_asymmetry" in s.effects:
@@ -203,12 +243,7 @@ def test_a_screen_another_start_took_below_the_model_still_descending_goes_on_ov
         restarted.append(len(starts))
         return [result(s, 0.98, 0.56 if i == 1 else 1.6, capped=True) for i, s in enumerate(starts)]
 
-    n = len(predictor.train)
-    monkeypatch.setattr(loop, "fit", fake_fit)
-    monkeypatch.setattr(loop, "fits_from", fake_fits_from)
-    monkeypatch.setattr(loop, "finish", lambda pred, r: dataclasses.replace(
-        r, partial=None, cost_train=r.partial.loss, train_costs=np.full(n, r.partial.loss)))
-    ref = FitResult(Structure.create(BASE, DriveSpec(), 1.0), 1.0, 1.0, {}, {}, train_costs=np.ones(n))
+    ref = _faked_screens(predictor, monkeypatch, fake_fit, fake_fits_from)
     options = DiagnoseOptions(candidates=("friction_asymmetry", "input_offset"))
 
     lines = []
@@ -225,3 +260,60 @@ def test_a_screen_another_start_took_below_the_model_still_descending_goes_on_ov
         result(s, 0.98, 1.2, capped=True) for s in starts])
     _, finished, rest, above = screen()
     assert set(finished) == {"friction_asymmetry"} and list(above) == ["input_offset"] and above["input_offset"] == 1.2
+
+
+def test_a_candidate_is_fitted_from_other_starts_once_a_screen_whatever_its_variants(predictor, monkeypatch):
+    """2SEP is screened from two lag gains; the second start's other starts (the catalogue's,
+    then the same seeded draws) are the first one's start and draws again, so where both stall
+    only the first is restarted."""
+    result = _screen_result
+
+    def fake_fit(pred, s, names=None, **kw):
+        return result(s, 0.99, 1.5) if "dynamic_friction" in s.effects else result(s, 1.0, 1.0)
+
+    draws = []
+
+    def fake_fits_from(pred, starts, names=None, **kw):
+        draws.append([s.values["dynamic_friction.b"] for s in starts])
+        return [result(s, 0.98, 1.3) for s in starts]
+
+    ref = _faked_screens(predictor, monkeypatch, fake_fit, fake_fits_from)
+    variants = loop._candidate_variants("dynamic_friction", {}, ref.structure)
+    assert len(variants) == 2 and variants[0] == ({}, {})
+    lines = []
+    _screen(predictor, ref, {}, DiagnoseOptions(candidates=("dynamic_friction",)), lines.append, ScreenClock(1), {},
+            set())
+    assert sum("screened dynamic_friction on the subset" in line for line in lines) == 2
+    # the draws a restart of the second variant would take: its own start, then the first's draws
+    second = loop.with_candidate(ref.structure, "dynamic_friction", variants[1][0])
+    from mjjoint.identify.fit import restart_points
+    again = [s.values["dynamic_friction.b"] for s in restart_points(second, ["dynamic_friction.k", "dynamic_friction.b"],
+                                                                      loop.SCREEN_RESTARTS, predictor.design.seed)]
+    assert len(draws) == 1 and again[1:] == draws[0][:-1]
+    assert again[0] == loop.with_candidate(ref.structure, "dynamic_friction").values["dynamic_friction.b"]
+
+
+def test_an_unstable_screen_is_not_fitted_from_other_starts_and_the_verdict_says_it_was_unstable(predictor,
+                                                                                               monkeypatch):
+    """A screen whose prediction diverges at the finest step tried (KR300's rod, whose gear needs
+    5 us) ends far above the model in training, but other starts of its own parameters cannot
+    cure a step too coarse: it is not restarted, and the verdict lists it as unstable, not by a
+    ratio of diverged costs."""
+    from types import SimpleNamespace
+    result = _screen_result
+
+    def fake_fit(pred, s, names=None, **kw):
+        return result(s, 1e6, 3e8) if "input_offset" in s.effects else result(s, 1.0, 1.0)
+
+    restarted = []
+    ref = _faked_screens(predictor, monkeypatch, fake_fit, lambda *a, **kw: restarted.append(a) or [])
+    monkeypatch.setattr(loop, "_instability", lambda trial: ("the gear too stiff for the step", trial))
+    unstable = {}
+    _, _, _, above = _screen(predictor, ref, {}, DiagnoseOptions(candidates=("input_offset",)), lambda line: None,
+                             ScreenClock(1), unstable, set())
+    assert restarted == [] and unstable == {"input_offset": "the gear too stiff for the step"}
+    assert above == {"input_offset": float("inf")}
+    floor = SimpleNamespace(ratios=lambda nrmse: {"q": 10.0}, nrmse={"q": 0.01}, capped=(), scored=())
+    text = loop._verdict([], ref, SimpleNamespace(nrmse_test={"q": 0.1}, cost_test=1.0), floor, False, {}, "", {},
+                         above)
+    assert "input_offset (its prediction unstable at the finest step tried" in text and "infx" not in text

@@ -657,8 +657,10 @@ def _verdict(steps: list[Step], initial: FitResult, final: FitResult, floor: Flo
     if unresolved and not explained:
         # "No catalogued effect explains it" holds only for the candidates whose fits converged.
         text += ("; not ruled out, their screens ended above the model they extend (fits that did not "
-                 "converge): " + ", ".join(f"{k.replace(BUNDLE, ' + ')} ({r:.3g}x its training cost)"
-                                          for k, r in unresolved.items()))
+                 "converge): " + ", ".join(f"{k.replace(BUNDLE, ' + ')} (" + (
+                     f"{r:.3g}x its training cost" if np.isfinite(r) else
+                     "its prediction unstable at the finest step tried, unstable_screens says why") + ")"
+                     for k, r in unresolved.items()))
     revised = [r.line for r in revisions if r.kind != "stand-in"]
     if revised:
         text += "; revised: " + "; ".join(revised)
@@ -682,8 +684,13 @@ def mismatch(final: FitResult, floor: Floor, where: dict) -> str:
         return "none above the noise floor"
     nf = floor.nrmse
     capped = [s for s in over if s in floor.capped]
+    # A signal the fit does not score (``--fit-signals``) is judged too, but its miss is no fit's
+    # aim; the link angle is scored through the deflection q/N - theta.
+    scored = set(floor.scored) | ({"theta"} if "delta" in floor.scored else set())
+    unscored = [s for s in over if floor.scored and s not in scored]
     signals = ", ".join(f"{s} held-out NRMSE {final.nrmse_test[s]:.3g} against a floor of {nf[s]:.3g}"
-                        + (f" (its twin {floor.twin[s]:.3g})" if s in capped else "") for s in over)
+                        + (f" (its twin {floor.twin[s]:.3g})" if s in capped else "")
+                        + (" (a signal the fit does not score)" if s in unscored else "") for s in over)
     if capped:  # a model whose own twin misses about as much may be right but for its windows' starts
         signals += (f" (a floor counts the model's own twin up to {WINDOWING_TRUST:g}x the recording's noise; "
                     "its window starts may cost the model as much, so part of the rest may be theirs, not "
@@ -780,6 +787,9 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
     starts: list[Structure] = []
     descending: list[int] = []  # screens taken to a finer step or another start that still descend (``continued``)
     best_of: dict[str, FitResult] = {}  # each candidate's best subset screen so far (``_nested``)
+    # Candidates (with their settings) already fitted from other starts: a variant that differs
+    # only in its own parameters' start would draw the same starts again (``restart_points``).
+    restarted: set[tuple] = set()
     for i, (name, values, settings) in enumerate(trials, 1):
         start = time.perf_counter()
         trial = with_candidate(ref.structure, name, values, settings)
@@ -803,7 +813,11 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
             res, trial = _nested(predictor, name, values, settings, res, trial, best_of, freed, options)
             if trial is not tried:
                 how = ", started from its prerequisites' screen"
-            if training_ratio(predictor, res, null, from_start=True) >= UNRESOLVED_RATIO:
+            key = (name, tuple(sorted(settings.items())))
+            # An unstable prediction is the step's (``unstable``), not the start's: no restart.
+            if (key not in restarted and res.cost_test < UNSTABLE_COST
+                    and training_ratio(predictor, res, null, from_start=True) >= UNRESOLVED_RATIO):
+                restarted.add(key)
                 res, again = _restarted_screen(predictor, name, res, trial, freed, options, null, say)
                 if again is not trial:
                     how = ", from another start"
@@ -846,6 +860,7 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
                 rest[name] = (cost, res)
     ratios = {**{k: training_ratio(predictor, res, null, from_start=True) for k, (_, res) in rest.items()},
               **{k: training_ratio(predictor, res, ref) for k, (_, res) in screened.items()}}
+    ratios.update({k: np.inf for k, (_, res) in {**rest, **screened}.items() if not res.cost_test < UNSTABLE_COST})
     return ref, screened, rest, not_converged(ratios)
 
 

@@ -9,8 +9,9 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   against the model without it refitted with more freedom (every parameter free, ``fit_iter``
   iterations, then the robust loss, kept if it predicts the held-out windows better); an effect
   whose gain does not survive that, or whose own parameters end on their bounds, is a stand-in:
-  it is reported (``stand_in_effects``), not named, and not screened again; so is an effect, the
-  first too, whose term, switched off at its own fit with every other parameter where that fit
+  it is reported (``stand_in_effects``), not named, and not screened again; so is the first
+  effect where every one of its own parameters ends on a bound (none of them an estimate of it);
+  so is an effect, the first too, whose term, switched off at its own fit with every other parameter where that fit
   left them, loses less than the acceptance rule's relative or absolute gain (its gain is the
   optimum its fit carried the other parameters to: a viscous asymmetry of 2.5 % "explaining"
   75 % of the held-out cost); so is an effect, the first too, whose characteristic speed (the
@@ -141,7 +142,7 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): its
     term switched off at its own fit losing less than the acceptance rule's relative or absolute
     gain (``switched_off``, ``loop.gain_shortfalls``; the first effect too), its own parameters on
-    their bounds, a characteristic speed fitted below what the recording resolves
+    their bounds (the first effect where every one of them is), a characteristic speed fitted below what the recording resolves
     (``unresolved_speeds``; the first effect too), a related effect already refused as a stand-in
     (one of ``refusals``) predicting the held-out windows better than it does, or, when it is ``related``
     to an effect already ``named``, its gain gone against the model without it refitted with more
@@ -175,10 +176,12 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
                         f"did (held-out cost {after.cost_test:.4g} with it, {better[0].cost_after:.4g} with "
                         f"{better[0].effect}): what acts there is neither"), None
     unresolved_speed = unresolved_speeds(predictor, after, step.effect)
-    if not (named or unresolved_speed):
-        return None, None
     own = [p.name for p in EFFECTS[step.effect].params]
-    bound = [n for n in after.on_bound if n in own] if named else []
+    bound = [n for n in after.on_bound if n in own]
+    if not named and len(bound) < len(own):  # the first effect: only where none of its own is an estimate
+        bound = []
+    if not (named or unresolved_speed or bound):
+        return None, None
     if bound or unresolved_speed:
         # A term fitted to a bound is often fitted to none at all (a Stribeck ratio of 1, a delay
         # of 0): its gain is then the model's own, reached from another start, which the model
@@ -186,7 +189,8 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
         free = _robust_kept(predictor, _refit_without(predictor, after, step, options), options)
         say(f"  the model without {step.effect} refitted from its values: held-out cost {free.cost_test:.4g} "
             f"(before it {before.cost_test:.4g}, with it {after.cost_test:.4g})")
-        why = (f"its parameters on their bounds ({', '.join(bound)})" if bound else
+        values = after.structure.values
+        why = (f"its parameters on their bounds ({', '.join(f'{n} = {values[n]:.4g}' for n in bound)})" if bound else
                f"{unresolved_speed}, below the speed the recording resolves ({predictor.m.moving_speed:.3g}: "
                "one noise band a sample), a law over speeds the recording cannot tell from rest")
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,

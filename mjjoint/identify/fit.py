@@ -116,6 +116,11 @@ class FitResult:
     left_out: tuple[int, ...] = ()
     starts: int = 1  # fits run from different starting points (``restarts``), the best kept
     robust: bool = False  # fitted under the robust loss over windows (``fit(robust=True)``)
+    # The least-squares training cost where a fit without a subset phase started (its first LM
+    # objective over all its windows; NaN under the robust loss or after a subset phase, whose
+    # own start is ``partial.start_loss``): what a fit started there with fewer parameters free
+    # cannot end above (``training_ratio(from_start=True)``).
+    start_cost: float = float("nan")
     # Set on a fit stopped after its subset phase (``fit(subset_only=True)``): where ``finish``
     # goes on. Such a result holds the held-out cost and NRMSE only (train: NaN, {}).
     partial: "_Partial | None" = field(default=None, repr=False, compare=False)
@@ -381,15 +386,20 @@ def fitted_on_both(predictor: Predictor, a: FitResult, b: FitResult) -> np.ndarr
 
 def training_ratio(predictor: Predictor, result: FitResult, reference: FitResult, from_start: bool = False) -> float:
     """``result``'s least-squares training cost over ``reference``'s on the windows both were
-    fitted on: their subset phase's where both stopped after it (``subset_only``; with
-    ``from_start``, over the loss the reference began that phase at), else the training windows
-    neither left out. A fit of a structure that contains the reference's, with at least its
-    parameters free (or started where the reference started, ``from_start``), cannot end above 1
-    where it converged."""
+    fitted on: their subset phase's where both stopped after it (``subset_only``), else the
+    training windows neither left out. A fit of a structure that contains the reference's, with
+    at least its parameters free, cannot end above 1 where it converged. With ``from_start``, over
+    the cost the reference started at (its subset phase's start, or a whole fit's
+    ``start_cost``, over all training windows): the bound of a fit started there with fewer
+    parameters free."""
     if result.partial is not None and reference.partial is not None:
         return float(result.partial.loss / (reference.partial.start_loss if from_start else reference.partial.loss))
     if result.partial is not None or reference.partial is not None:
         raise ValueError("training_ratio: a fit stopped after its subset phase compares only with another one")
+    if from_start:
+        if not np.isfinite(reference.start_cost):
+            raise ValueError("training_ratio: the reference kept no least-squares start cost (a robust fit)")
+        return float(np.mean(result.train_costs) / reference.start_cost)
     keep = fitted_on_both(predictor, result, reference)
     return float(np.mean(result.train_costs[keep]) / np.mean(reference.train_costs[keep]))
 
@@ -499,6 +509,7 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
     intervals and the train/held-out scores."""
     structure, names, windows, lo, hi, x, done = st.structure, st.names, st.windows, st.lo, st.hi, st.x, st.done
     coarse_done = done
+    start_cost = float("nan")
     # The windows the fitted model leaves undetermined (``Predictor.undetermined``) are left out
     # and the LM goes on without them, once. Not the start's: a start far off (the catalogue's
     # values) flags the very breakaways that show the effect, and a fit without them misses it.
@@ -507,6 +518,8 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
         for _ in range(SCALE_ROUNDS):
             obj, obj_scale = Objective(predictor, structure, names, windows, lo, hi, STEP_SE, scale), scale
             x, k, _, _ = _lm(obj, x, st.max_iter, _reporter(progress, done))
+            if done == 0 and scale is None and obj.costs:  # the fit's own start, on all its windows
+                start_cost = obj.costs[0] / obj.m
             done += k
             new = None if scale is None else _scale_at(predictor, structure, names, st.robust, x, windows, obj)
             if new is None or new > scale / 2:
@@ -529,7 +542,7 @@ def _second_phase(predictor: Predictor, st: _Partial, progress, start: float, ro
                      train_costs=window_costs(predictor, best, train, ptr),
                      left_out=tuple(int(w) for w in np.setdiff1d(st.windows, windows)),
                      rollouts=predictor.rollouts - roll0, seconds=time.perf_counter() - start,
-                     coarse_iterations=coarse_done, robust=st.robust,
+                     coarse_iterations=coarse_done, robust=st.robust, start_cost=start_cost,
                      on_bound=best.stand_in_bounds(names, x),
                      at_optimum=_AtOptimum(optimum, names, windows, obj_scale, at))
 
