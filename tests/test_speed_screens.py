@@ -317,3 +317,27 @@ def test_an_unstable_screen_is_not_fitted_from_other_starts_and_the_verdict_says
     text = loop._verdict([], ref, SimpleNamespace(nrmse_test={"q": 0.1}, cost_test=1.0), floor, False, {}, "", {},
                          above)
     assert "input_offset (its prediction unstable at the finest step tried" in text and "infx" not in text
+
+
+def test_a_screen_asked_again_of_the_same_model_costs_no_rollout_and_gives_the_same_answer(predictor):
+    """A round that leaves its model as it was (an effect refused as a stand-in) screens the same
+    candidates against the same fit again: those subset fits and their finishing are made once
+    per predictor, and a repeated screen returns the same results without a rollout."""
+    base = fit(predictor, Structure.create(BASE, DriveSpec(), 1.0), max_iter=30)
+    options = DiagnoseOptions(candidates=("input_offset", "friction_asymmetry"), screen_iter=4)
+
+    def screen():
+        return _screen(predictor, base, {}, options, lambda line: None, ScreenClock(1), {}, set())
+    _, finished, rest, above = screen()
+    spent = predictor.rollouts
+    _, finished2, rest2, above2 = screen()
+    assert predictor.rollouts == spent
+    assert finished and {k: (c, r.structure.values) for k, (c, r) in finished2.items()} == {
+        k: (c, r.structure.values) for k, (c, r) in finished.items()}
+    assert {k: c for k, (c, _) in rest2.items()} == {k: c for k, (c, _) in rest.items()} and above2 == above
+    # a copy each time: a caller's change to a result does not reach the next caller
+    start = loop.with_candidate(base.structure, "input_offset")
+    one = fit(predictor, start, max_iter=4, subset_only=True)
+    cost, one.cost_test, one.seconds = one.cost_test, -1.0, -1.0
+    again = fit(predictor, start, max_iter=4, subset_only=True)
+    assert again.cost_test == cost and again.seconds > 0 and again.partial is one.partial

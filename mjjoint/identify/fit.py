@@ -7,7 +7,8 @@ are optimised in log coordinates where they span decades. The LM runs first on a
 quarter of the windows, then on all of them, and stops when its Gauss-Newton step is a tenth
 of the parameters' standard errors, or when a trial step fails within half of one (constants
 below). A fit may stop between the two phases (``subset_only``: the diagnosis screens every
-candidate so) and be finished later (``finish``) to exactly the whole fit's result. The
+candidate so) and be finished later (``finish``) to exactly the whole fit's result; each of the
+two is made once per predictor and arguments (``_MEMO``). The
 Jacobian's columns around a point whose model passed the stability check are not checked
 again (``Predictor.predict(assume_stable=True)``). 95 % intervals come from the Jacobian at
 the optimum, with the windows as the independent units (``intervals``: a window's residuals
@@ -34,6 +35,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -341,7 +343,14 @@ def fit(predictor: Predictor, structure: Structure, names=None, *, max_iter: int
     if subset_only:
         if restarts:
             raise ValueError("fit: subset_only and restarts cannot be combined")
-        return _fit_once(predictor, structure, names, max_iter, windows, progress, robust, subset_only=True)
+        key = _memo_key(structure, names, max_iter, windows, robust)
+        memo = _MEMO.setdefault(predictor, {})
+        if key is not None and key in memo and memo[key][0] is structure.start:
+            return dataclasses.replace(memo[key][1])
+        result = _fit_once(predictor, structure, names, max_iter, windows, progress, robust, subset_only=True)
+        if key is not None:
+            memo[key] = (structure.start, result)
+        return dataclasses.replace(result)
     result = _fit_once(predictor, structure, names, max_iter, windows, progress, robust)
     if restarts <= 0:
         return result
@@ -366,7 +375,8 @@ def fits_from(predictor: Predictor, starts: list[Structure], names=None, *, max_
               subset_only: bool = False) -> list[FitResult]:
     """One fit of ``names`` from each of ``starts`` (``restart_points``), as ``fit`` without
     restarts fits."""
-    return [_fit_once(predictor, s, names, max_iter, windows, progress, robust, subset_only) for s in starts]
+    return [fit(predictor, s, names, max_iter=max_iter, windows=windows, progress=progress, robust=robust,
+                subset_only=subset_only) for s in starts]
 
 
 def lowest(tried: list[FitResult]) -> FitResult:
@@ -489,11 +499,36 @@ def finish(predictor: Predictor, result: FitResult, progress=None) -> FitResult:
     windows: the result the whole fit gives, its time and rollouts counting both parts."""
     if result.partial is None:
         return result
+    memo = _MEMO.setdefault(predictor, {})
+    done = memo.get(id(result.partial))
+    if done is not None and done[0] is result.partial:
+        return dataclasses.replace(done[1])
     start, roll0 = time.perf_counter(), predictor.rollouts
     out = _second_phase(predictor, result.partial, progress, start, roll0)
     out.seconds += result.seconds
     out.rollouts += result.rollouts
-    return out
+    memo[id(result.partial)] = (result.partial, out)
+    return dataclasses.replace(out)
+
+
+# A fit stopped after its subset phase, and its finishing, are functions of the predictor and
+# their arguments alone; a diagnosis asks for the same ones again where a round leaves its model
+# as it was (an effect refused as a stand-in, the model without it not kept: the next round
+# screens the same candidates against the same fit). Each is made once per predictor, and a
+# copy of the result returned (its ``rollouts`` and ``seconds`` those the fit took when made).
+_MEMO: "weakref.WeakKeyDictionary[Predictor, dict]" = weakref.WeakKeyDictionary()
+
+
+def _memo_key(structure: Structure, names, max_iter: int, windows, robust: bool) -> tuple | None:
+    """What a subset fit depends on besides its predictor, hashable (None where the plant is not)."""
+    try:
+        hash(structure.nominal)
+    except TypeError:
+        return None
+    return (structure.effects, tuple(sorted(structure.values.items())), tuple(sorted(structure.settings.items())),
+            structure.nominal, structure.gear_ratio, id(structure.start),
+            None if names is None else tuple(names), max_iter,
+            None if windows is None else tuple(np.asarray(windows).tolist()), robust)
 
 
 def _scale_at(predictor: Predictor, structure: Structure, names, robust: bool, x, w, obj=None):
