@@ -287,8 +287,9 @@ def test_a_candidate_is_fitted_from_other_starts_once_a_screen_whatever_its_vari
     # the draws a restart of the second variant would take: its own start, then the first's draws
     second = loop.with_candidate(ref.structure, "dynamic_friction", variants[1][0])
     from mjjoint.identify.fit import restart_points
-    again = [s.values["dynamic_friction.b"] for s in restart_points(second, ["dynamic_friction.k", "dynamic_friction.b"],
-                                                                      loop.SCREEN_RESTARTS, predictor.design.seed)]
+    own = ["dynamic_friction.k", "dynamic_friction.b"]
+    again = [s.values["dynamic_friction.b"]
+             for s in restart_points(second, own, loop.SCREEN_RESTARTS, predictor.design.seed)]
     assert len(draws) == 1 and again[1:] == draws[0][:-1]
     assert again[0] == loop.with_candidate(ref.structure, "dynamic_friction").values["dynamic_friction.b"]
 

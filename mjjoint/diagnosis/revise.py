@@ -11,10 +11,10 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   whose gain does not survive that, or whose own parameters end on their bounds, is a stand-in:
   it is reported (``stand_in_effects``), not named, and not screened again; so is the first
   effect where every one of its own parameters ends on a bound (none of them an estimate of it);
-  so is an effect, the first too, whose term, switched off at its own fit with every other parameter where that fit
-  left them, loses less than the acceptance rule's relative or absolute gain (its gain is the
-  optimum its fit carried the other parameters to: a viscous asymmetry of 2.5 % "explaining"
-  75 % of the held-out cost); so is an effect, the first too, whose characteristic speed (the
+  so is an effect, the first too, whose term, switched off at its own fit with every other
+  parameter where that fit left them, loses less than the acceptance rule's relative or absolute
+  gain (its gain is the optimum its fit carried the other parameters to: a viscous asymmetry of
+  2.5 % "explaining" 75 % of the held-out cost); so is an effect, the first too, whose characteristic speed (the
   Stribeck velocity) is fitted below the speed the recording resolves (``unresolved_speeds``);
   the model without it, refitted from where its fit left the other parameters, replaces the
   current one where it predicts the held-out windows better (a term fitted to its bound is
@@ -142,8 +142,8 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): its
     term switched off at its own fit losing less than the acceptance rule's relative or absolute
     gain (``switched_off``, ``loop.gain_shortfalls``; the first effect too), its own parameters on
-    their bounds (the first effect where every one of them is), a characteristic speed fitted below what the recording resolves
-    (``unresolved_speeds``; the first effect too), a related effect already refused as a stand-in
+    their bounds (the first effect where every one of them is), a characteristic speed fitted
+    below what the recording resolves (``unresolved_speeds``; the first effect too), a related effect already refused as a stand-in
     (one of ``refusals``) predicting the held-out windows better than it does, or, when it is ``related``
     to an effect already ``named``, its gain gone against the model without it refitted with more
     freedom, from where ``after`` left the other parameters (the added term may only have carried
