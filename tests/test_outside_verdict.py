@@ -222,3 +222,26 @@ def test_a_sign_of_the_recording_no_named_effect_explains_is_stated():
     assert signs["energy_returned"] in _verdict([], fit, fit, floor, False, {}, "", {}, signs=signs)
     assert signs["energy_returned"] in _verdict([plain], fit, fit, floor, False, {}, "", {}, signs=signs)
     assert "gives energy back" not in _verdict([late], fit, fit, floor, False, {}, "", {}, signs=signs)
+
+
+def test_a_named_parameter_the_final_fit_held_is_said_to_have_no_interval_of_its_own():
+    """The out-of-regime hardening-gear route: the last addition's refit with every parameter
+    free predicted the held-out windows worse than its screen, which freed the link encoder's
+    skew and the gear's stiffness alone and is kept; the cubic named earlier then has no interval
+    in the final fit, and a warning says why instead of a bare value."""
+    from types import SimpleNamespace
+
+    from mjjoint.diagnosis.loop import with_held_noted
+    from mjjoint.report.summary import flagged
+
+    structure = SimpleNamespace(values={"linear_stiffness.k1": 9992.0, "nonlinear_stiffness.k3": 9.794e7,
+                                        "sensor_skew.lag": 6.5e-5})
+    kept = FitResult(structure, 1e-3, 1e-3, {}, {}, intervals={"linear_stiffness.k1": (9890.0, 10100.0),
+                                                               "sensor_skew.lag": (5.8e-5, 7.2e-5)},
+                     at_optimum=SimpleNamespace(names=["linear_stiffness.k1", "sensor_skew.lag"]))
+    noted = with_held_noted(kept, list(structure.values))
+    assert noted.warnings == [
+        "nonlinear_stiffness.k3 = 9.794e+07: held at an earlier fit's value in the final fit, which fitted the rest "
+        "(the refit with every parameter free predicted the held-out windows worse); no 95 % interval of its own"]
+    assert flagged("nonlinear_stiffness.k3", noted.warnings) and kept.warnings == []
+    assert with_held_noted(kept, ["linear_stiffness.k1", "sensor_skew.lag"]) is kept

@@ -579,6 +579,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     with phases("interval check"):
         current = check_intervals(predictor, current, [name for s in steps for name in s.parameters],
                                   biased=list(current.intervals))
+    current = with_held_noted(current, [name for s in steps for name in s.parameters])
     with phases("locate"):
         # The last round's model, unchanged since (nothing added, the final robust estimate not
         # kept): its residual is located already.
@@ -601,6 +602,22 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
 def refused(revisions) -> tuple[str, ...]:
     """The effects refused as stand-ins (``revise.stand_in``): not screened again."""
     return tuple(r.effect for r in revisions if r.kind == "stand-in")
+
+
+def with_held_noted(result: FitResult, names) -> FitResult:
+    """``result`` with a warning for each of ``names`` (the named effects' parameters) that it
+    did not fit: the final model can be a screen that held the rest at an earlier fit's values,
+    kept where the refit with every parameter free predicted the held-out windows worse, and
+    such a value has no interval of its own."""
+    fitted = set() if result.at_optimum is None else set(result.at_optimum.names)
+    held = [n for n in names if n not in fitted and n not in result.intervals]
+    if not held:
+        return result
+    values = result.structure.values
+    return dataclasses.replace(result, warnings=result.warnings + [
+        f"{n} = {values[n]:.4g}: held at an earlier fit's value in the final fit, which fitted the rest (the "
+        "refit with every parameter free predicted the held-out windows worse); no 95 % interval of its own"
+        for n in held])
 
 
 def stand_ins(result: FitResult) -> dict[str, str]:
