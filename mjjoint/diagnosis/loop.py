@@ -576,10 +576,10 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 history.append(current)
     # The named effects' intervals checked against the model, every interval widened by its
     # estimate's step bias (identify.fit.check_intervals).
+    named = [name for s in steps for name in s.parameters]
     with phases("interval check"):
-        current = check_intervals(predictor, current, [name for s in steps for name in s.parameters],
-                                  biased=list(current.intervals))
-    current = with_held_noted(current, [name for s in steps for name in s.parameters])
+        current = check_intervals(predictor, current, named, biased=list(current.intervals))
+    current = with_held_noted(current, named)
     with phases("locate"):
         # The last round's model, unchanged since (nothing added, the final robust estimate not
         # kept): its residual is located already.

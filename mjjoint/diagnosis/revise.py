@@ -14,14 +14,15 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   so is an effect, the first too, whose term, switched off at its own fit with every other
   parameter where that fit left them, loses less than the acceptance rule's relative or absolute
   gain (its gain is the optimum its fit carried the other parameters to: a viscous asymmetry of
-  2.5 % "explaining" 75 % of the held-out cost); so is an effect, the first too, whose characteristic speed (the
-  Stribeck velocity) is fitted below the speed the recording resolves (``unresolved_speeds``);
-  the model without it, refitted from where its fit left the other parameters, replaces the
-  current one where it predicts the held-out windows better (a term fitted to its bound is
-  often fitted to none, its gain the model's own from another start). A generic form, the
-  first effect too, is one where its fit cannot tell its size from none (``resolved``). So is an
-  effect related to one refused before that predicted the held-out windows better than it does:
-  it explains a part of what that stand-in did, and the physics acting there is neither.
+  2.5 % "explaining" 75 % of the held-out cost); so is an effect, the first too, whose
+  characteristic speed (the Stribeck velocity) is fitted below the speed the recording resolves
+  (``unresolved_speeds``); the model without it, refitted from where its fit left the other
+  parameters, replaces the current one where it predicts the held-out windows better (a term
+  fitted to its bound is often fitted to none, its gain the model's own from another start). A
+  generic form, the first effect too, is one where its fit cannot tell its size from none
+  (``resolved``). So is an effect related to one refused before that predicted the held-out
+  windows better than it does: it explains a part of what that stand-in did, and the physics
+  acting there is neither.
 - **Swap**: each named effect is replaced by each of its rivals (``rivals``: the effects acting
   at the same site under a shared residual condition, and the ones the step found
   indistinguishable), the rest refitted; the swap is kept when the swapped model passes the
@@ -139,17 +140,17 @@ def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: d
 def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: Step, named: list[Step],
              options: DiagnoseOptions, floor_cost: float, say: Callable[[str], None], refusals=()
              ) -> tuple[Revision | None, FitResult | None]:
-    """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): its
-    term switched off at its own fit losing less than the acceptance rule's relative or absolute
-    gain (``switched_off``, ``loop.gain_shortfalls``; the first effect too), its own parameters on
-    their bounds (the first effect where every one of them is), a characteristic speed fitted
-    below what the recording resolves (``unresolved_speeds``; the first effect too), a related effect already refused as a stand-in
-    (one of ``refusals``) predicting the held-out windows better than it does, or, when it is ``related``
-    to an effect already ``named``, its gain gone against the model without it refitted with more
-    freedom, from where ``after`` left the other parameters (the added term may only have carried
-    them to a better optimum). Returns (the refusal or None, that refit of the model without it
-    or None; a refusal for bounds refits it too, which the loop keeps where it predicts the
-    held-out windows better than the model it extends)."""
+    """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): its term
+    switched off at its own fit losing less than the acceptance rule's relative or absolute gain
+    (``switched_off``, ``loop.gain_shortfalls``; the first effect too), its own parameters on their
+    bounds (the first effect where every one of them is), a characteristic speed fitted below what
+    the recording resolves (``unresolved_speeds``; the first effect too), a related effect already
+    refused as a stand-in (one of ``refusals``) predicting the held-out windows better than it does,
+    or, when it is ``related`` to an effect already ``named``, its gain gone against the model
+    without it refitted with more freedom, from where ``after`` left the other parameters (the added
+    term may only have carried them to a better optimum). Returns (the refusal or None, that refit
+    of the model without it or None; a refusal for bounds refits it too, which the loop keeps where
+    it predicts the held-out windows better than the model it extends)."""
     size = [p.name for p in EFFECTS[step.effect].params if not p.log and p.initial == 0.0]
     if EFFECTS[step.effect].generic and not resolved(after, size):
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,

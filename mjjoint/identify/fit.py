@@ -8,7 +8,7 @@ quarter of the windows, then on all of them, and stops when its Gauss-Newton ste
 of the parameters' standard errors, or when a trial step fails within half of one (constants
 below). A fit may stop between the two phases (``subset_only``: the diagnosis screens every
 candidate so) and be finished later (``finish``) to exactly the whole fit's result; each of the
-two is made once per predictor and arguments (``_MEMO``). The
+two is made once per predictor and arguments (``_MEMO``, ``_Partial.finished``). The
 Jacobian's columns around a point whose model passed the stability check are not checked
 again (``Predictor.predict(assume_stable=True)``). 95 % intervals come from the Jacobian at
 the optimum, with the windows as the independent units (``intervals``: a window's residuals
@@ -455,6 +455,7 @@ class _Partial:
     robust: bool
     loss: float  # the subset phase's objective per residual at x
     start_loss: float  # the same at the start
+    finished: "FitResult | None" = field(default=None, repr=False, compare=False)  # ``finish``'s result, once made
 
 
 def _fit_once(predictor: Predictor, structure: Structure, names, max_iter: int, windows, progress,
@@ -499,23 +500,21 @@ def finish(predictor: Predictor, result: FitResult, progress=None) -> FitResult:
     windows: the result the whole fit gives, its time and rollouts counting both parts."""
     if result.partial is None:
         return result
-    memo = _MEMO.setdefault(predictor, {})
-    done = memo.get(id(result.partial))
-    if done is not None and done[0] is result.partial:
-        return dataclasses.replace(done[1])
-    start, roll0 = time.perf_counter(), predictor.rollouts
-    out = _second_phase(predictor, result.partial, progress, start, roll0)
-    out.seconds += result.seconds
-    out.rollouts += result.rollouts
-    memo[id(result.partial)] = (result.partial, out)
-    return dataclasses.replace(out)
+    if result.partial.finished is None:
+        start, roll0 = time.perf_counter(), predictor.rollouts
+        out = _second_phase(predictor, result.partial, progress, start, roll0)
+        out.seconds += result.seconds
+        out.rollouts += result.rollouts
+        result.partial.finished = out
+    return dataclasses.replace(result.partial.finished)
 
 
 # A fit stopped after its subset phase, and its finishing, are functions of the predictor and
 # their arguments alone; a diagnosis asks for the same ones again where a round leaves its model
 # as it was (an effect refused as a stand-in, the model without it not kept: the next round
-# screens the same candidates against the same fit). Each is made once per predictor, and a
-# copy of the result returned (its ``rollouts`` and ``seconds`` those the fit took when made).
+# screens the same candidates against the same fit). Each subset fit is made once per predictor
+# (its finishing kept on its ``_Partial``), and a copy of the result returned (its ``rollouts``
+# and ``seconds`` those the fit took when made).
 _MEMO: "weakref.WeakKeyDictionary[Predictor, dict]" = weakref.WeakKeyDictionary()
 
 
