@@ -13,7 +13,7 @@ from mjjoint.assets.drive import DriveSpec
 from mjjoint.excitation import Chirp
 from mjjoint.experiments.servo import LARGE, SMALL, geared_recording, servo_recording
 from mjjoint.identify.effects import EFFECTS
-from mjjoint.identify.initial import DECADES, STIFFNESS, engaged_gear, estimate
+from mjjoint.identify.initial import CATALOGUE_ORDERS, DECADES, STIFFNESS, Estimate, engaged_gear, estimate
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured
 from mjjoint.joint import JointParams
@@ -200,3 +200,23 @@ def test_a_simulated_play_wider_than_the_catalogues_start_is_offered_to_the_back
         else:
             assert starts[0] == {} and starts[1]["backlash.width"] == pytest.approx(width, rel=0.2)
             assert starts[1]["linear_stiffness.k1"] == pytest.approx(5e3, rel=0.2)
+
+
+@pytest.mark.parametrize("g", [24.6, 1194.0], ids=["inside", "outside"])
+def test_every_range_started_from_a_recording_is_one_the_model_accepts(g):
+    """A link regression that reads gravity at 24.6 m/s^2 starts g there but keeps its range
+    (DECADES either side would reach 2.5e4, which the arm refuses: a fit stepping there ends in
+    an error, not a cost); one that reads 1194 is no estimate of g at all. Every other parameter
+    at either end of its range builds a model too."""
+    effects = ("coulomb_friction", "viscous_friction", "gravity", "load_friction", "linear_stiffness")
+    base = Structure.create(effects, ArmSpec(), 160.0)
+    start = Estimate(CATALOGUE_ORDERS["force"], CATALOGUE_ORDERS["speed"], values={"gravity.g": g, "mass.tip": 3.5, "load_friction.viscous": 11.0})
+    started = base.started(start)
+    param = next(p for p in started.params if p.name == "gravity.g")
+    catalogue = EFFECTS["gravity"].params[0]
+    assert (param.lo, param.hi) == (catalogue.lo, catalogue.hi)
+    assert param.initial == (g if catalogue.lo <= g <= catalogue.hi else catalogue.initial)
+    for p in started.params:
+        for end in (p.lo, p.hi):
+            started.with_values({p.name: end}).model_params()
+

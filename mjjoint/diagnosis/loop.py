@@ -1088,7 +1088,9 @@ def _decide(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[floa
     A bundle opens the path to an effect behind a prerequisite; it does not name that effect
     while the prerequisite alone passes: then the prerequisite is named, and the effect behind
     it screened against it next round (a friction asymmetry bundled with the Coulomb friction it
-    shifts would otherwise stand in for any direction-dependent force at once).
+    shifts would otherwise stand in for any direction-dependent force at once). A passing sensor
+    effect gives way to passing physics (``_physics_first``), and a gear effect to one that fits
+    the gear's recorded law better (``_by_gear_law``).
     """
     max_p = options.max_p if max_p is None else max_p
     best, alternatives = _choose(screened, ref.cost_test)
@@ -1099,7 +1101,31 @@ def _decide(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[floa
         if not first.failed:
             return first
     choice = _assess(predictor, ref, screened, best, alternatives, options, floor_cost, max_p)
+    choice = _physics_first(predictor, ref, screened, choice, options, floor_cost, max_p)
     return _by_gear_law(predictor, ref, screened, choice, options, floor_cost, max_p)
+
+
+def _physics_first(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],
+                   choice: _Choice, options: DiagnoseOptions, floor_cost: float, max_p: float) -> _Choice:
+    """A passing sensor effect gives way to the best physics candidate that passes too. A sensor
+    effect says the recording is wrong; one that shifts a signal in time takes up any physics
+    that lags (a link encoder's skew reads as a gear's damper, a bearing, a frictional lag) and
+    gains where several terms are still missing (the shipped arm's hysteretic route: a skew of
+    83 us against none recorded, the damper, 2SEP and the bearing each passing beside it). Named
+    after the physics, it is screened again next round against the model that holds it, where a
+    real skew still passes and the revision's removal drops a physics term it stood for."""
+    if choice.failed or EFFECTS[parts(choice.best)[-1]].site != "sensor":
+        return choice
+    physics = sorted((k for k in screened if EFFECTS[parts(k)[-1]].site != "sensor"
+                      and screened[k][0] < ref.cost_test), key=lambda k: screened[k][0])
+    for key in physics:
+        other = _assess(predictor, ref, screened, key, [], options, floor_cost, max_p)
+        if not other.failed:
+            other.consistency["windows"] += (
+                f"; named before {choice.best.replace(BUNDLE, ' + ')} (held-out cost {screened[choice.best][0]:.4g}, "
+                "a sensor effect, screened again once it is in)")
+            return other
+    return choice
 
 
 def _by_gear_law(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],

@@ -32,6 +32,9 @@ class Param:
     # The lower bound stands for a value the effect keeps its meaning at (a rod of negligible
     # damping still bends): a fit there is an estimate, not a stand-in (``FitResult.on_bound``).
     lo_physical: bool = False
+    # A constant of nature (g): its range holds every plant and is what the model accepts, so
+    # the recording's estimate starts it where it lies inside and never moves the range.
+    scale_free: bool = False
 
     def to_unit(self, value: float) -> float:
         """Map a physical value to the optimiser's coordinate."""

@@ -69,6 +69,10 @@ EXCITED = 1e-3
 # The link is started from the recording (``_link_start``) where its estimated inertia lies this
 # many decades or more from the nominal arm's: rounded to its decade, as the orders are.
 LINK_DECADE = 0.5
+# ... and only where the rigid link's equation explains this share of the link torque's variance:
+# a bending rod or a gear's play breaks it, and its coefficients are then no estimates (a rod of
+# 4 segments: 58 %, with a negative Coulomb level and a 200x bearing damping).
+LINK_EXPLAINED = 0.9
 STIFFNESS = EFFECTS["linear_stiffness"].params[0]
 # A gear held on one side of its play by a steady load deflects by half the play at zero torque:
 # an offset is taken for the encoders' only where its torque is this many times the recording's.
@@ -116,8 +120,11 @@ class Estimate:
         return max(default, fc * timestep / (slope_step * j))
 
     def param(self, p: Param) -> Param:
-        """``p`` (already scaled) started at its estimate, bounds DECADES either side."""
+        """``p`` (already scaled) started at its estimate, bounds DECADES either side; a
+        ``Param.scale_free`` one keeps its range, started at an estimate inside it."""
         v = self.values.get(p.name)
+        if p.scale_free:
+            return dataclasses.replace(p, initial=v) if v is not None and p.lo <= v <= p.hi else p
         if v is None or not p.log or not v > 0:
             if v is not None and not p.log:  # a signed parameter: its estimate inside the range
                 span = max(abs(p.lo), abs(p.hi), 2.0 * abs(v))
@@ -197,19 +204,22 @@ def estimate(measured, arm=None) -> Estimate:
             # side is not known: taken as the gear's, as a robot joint's mostly is)
             torque = m.gear_ratio * (smooth(u) + values["input_offset.offset"] - values["inertia.motor"] * a)
             where = (np.abs(v) > MOVING_SHARE * speed) & ~near_reversal(v, guard)
-        values.update(_encoder_lag(delta[where], torque[where], w[where]))
+        values.update(_encoder_lag(delta[where], torque[where], w[where], rate(delta)[where]))
         if "linear_stiffness.k1" in values:
             offset = encoder_offset(delta[where], torque[where], values["linear_stiffness.k1"])
         play = engaged_gear(delta[where], rate(delta)[where], torque[where])
     return Estimate(force, speed, values, resonance, offset, play)
 
 
-def _encoder_lag(delta: np.ndarray, torque: np.ndarray, link_rate: np.ndarray) -> dict[str, float]:
+def _encoder_lag(delta: np.ndarray, torque: np.ndarray, link_rate: np.ndarray, delta_rate: np.ndarray
+                 ) -> dict[str, float]:
     """Where the link encoder reads late by ``lag``, the measured deflection carries lag theta'
-    beside the gear's T / k: ``sensor_skew.lag`` from delta = c + lag theta' + T / k (least
-    squares, k free), where it lies in the skew's range. A start value only: friction on the
-    rotor, which the gear does not carry, moves T by a term in theta' too."""
-    cols = np.column_stack([np.ones_like(delta), link_rate, torque])
+    beside the gear's (T - D delta') / k: ``sensor_skew.lag`` from delta = c + lag theta' -
+    (D / k) delta' + T / k (least squares, k and D free), where it lies in the skew's range. The
+    damper's column keeps a gear's D / k (0.2 ms on the shipped arm) out of the skew. A start
+    value only: friction on the rotor, which the gear does not carry, moves T by a term in theta'
+    too."""
+    cols = np.column_stack([np.ones_like(delta), link_rate, delta_rate, torque])
     lag = float(_least_squares(cols, delta)[1])
     return {"sensor_skew.lag": lag} if abs(lag) < SKEW.hi else {}
 
@@ -246,8 +256,9 @@ def _link_start(arm, tau: np.ndarray, theta: np.ndarray, w: np.ndarray, a: np.nd
     """The link's tip mass, gravity and bearing friction from tau = J_L a + G sin(theta) +
     Fl sgn(w) + dl w + c, on the samples where the link moves clearly; returned only where the
     link's inertia is a decade or more off the nominal arm's (``LINK_DECADE``), so a link of the
-    nominal's size starts from the catalogue as before. A hub-inertia link (no tip mass) and a
-    fit that finds no positive inertia give nothing."""
+    nominal's size starts from the catalogue as before, and where that equation holds
+    (``LINK_EXPLAINED``). A hub-inertia link (no tip mass) and a fit that finds no positive
+    inertia give nothing."""
     if not arm.tip_mass > 0:
         return {}
     speed = amplitude(w)
@@ -255,8 +266,11 @@ def _link_start(arm, tau: np.ndarray, theta: np.ndarray, w: np.ndarray, a: np.nd
     if moving.sum() < 10 or not speed > 0:
         return {}
     cols = np.column_stack([a, np.sin(theta), np.sign(w), w, np.ones_like(w)])[moving]
-    j_link, moment, fl, dl, _ = (float(x) for x in _least_squares(cols, tau[moving]))
+    coef = _least_squares(cols, tau[moving])
+    j_link, moment, fl, dl, _ = (float(x) for x in coef)
     if not j_link > 0 or abs(math.log10(j_link / arm.link_inertia)) < LINK_DECADE:
+        return {}
+    if _explained(cols, tau[moving], coef) < LINK_EXPLAINED:
         return {}
     tip = _tip_mass(arm, j_link)
     if tip is None:
@@ -298,6 +312,11 @@ def _rigid_split(j_rigid: float, gear_ratio: float, arm) -> tuple[dict[str, floa
     elif j_link > arm.link_inertia - arm.hub_inertia:
         out["inertia.link"] = j_link - (arm.link_inertia - arm.hub_inertia)
     return out, j_link
+
+
+def _explained(cols: np.ndarray, y: np.ndarray, coef: np.ndarray) -> float:
+    """The share of y's variance the regression y = cols @ coef explains."""
+    return 1.0 - float(np.var(y - cols @ coef)) / max(float(np.var(y)), np.finfo(float).tiny)
 
 
 def _least_squares(cols: np.ndarray, y: np.ndarray) -> np.ndarray:

@@ -1,0 +1,38 @@
+"""A sensor effect is named only where no physics passes beside it: a skew of the link encoder
+takes up any physics that lags (the shipped arm's hysteretic route named an 83 us skew, none
+recorded, while the gear's damper, 2SEP and the bearing each passed). Named after the physics,
+it is screened again against the model that holds it."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+from mjjoint.diagnosis import loop
+
+
+def _chosen(monkeypatch, costs: dict, fails: dict):
+    """``loop._physics_first`` after ``loop._assess`` (faked: ``fails`` the tests each key fails)
+    chose the lowest of ``costs`` against a model at held-out cost 1."""
+    def assess(predictor, ref, screened, key, alternatives, options, floor_cost, max_p):
+        failed = fails.get(key, [])
+        return loop._Choice(key, screened[key][1], 1.0 - screened[key][0], alternatives,
+                            {"p": 0.001, "windows": "10 held-out windows"}, failed, False)
+    monkeypatch.setattr(loop, "_assess", assess)
+    screened = {k: (c, SimpleNamespace(structure=k)) for k, c in costs.items()}
+    best = min(costs, key=costs.get)
+    return loop._physics_first(None, SimpleNamespace(cost_test=1.0), screened,
+                               assess(None, None, screened, best, [], None, 0, 0.05), loop.DiagnoseOptions(), 0.0, 0.05)
+
+
+def test_a_passing_physics_candidate_is_named_before_a_sensor_effect(monkeypatch):
+    chosen = _chosen(monkeypatch, {"sensor_skew": 0.77, "transmission_damping": 0.88, "dynamic_friction": 0.89}, {})
+    assert chosen.best == "transmission_damping" and not chosen.failed
+    assert "named before sensor_skew" in chosen.consistency["windows"]
+
+
+def test_a_sensor_effect_no_physics_rivals_is_named(monkeypatch):
+    fails = {"transmission_damping": ["gain 4.0 % < 10 %"]}
+    assert _chosen(monkeypatch, {"sensor_skew": 0.1, "transmission_damping": 0.96}, fails).best == "sensor_skew"
+    # a physics candidate that raises the held-out cost is no rival, whatever its tests say
+    assert _chosen(monkeypatch, {"sensor_skew": 0.1, "transmission_damping": 1.2}, {}).best == "sensor_skew"
+    # the rule leaves a physics choice as it is
+    assert _chosen(monkeypatch, {"backlash": 0.5, "sensor_skew": 0.6}, {}).best == "backlash"
