@@ -36,3 +36,10 @@ def test_a_sensor_effect_no_physics_rivals_is_named(monkeypatch):
     assert _chosen(monkeypatch, {"sensor_skew": 0.1, "transmission_damping": 1.2}, {}).best == "sensor_skew"
     # the rule leaves a physics choice as it is
     assert _chosen(monkeypatch, {"backlash": 0.5, "sensor_skew": 0.6}, {}).best == "backlash"
+
+
+def test_a_sensor_effect_the_recordings_sign_opened_keeps_its_place(monkeypatch):
+    """The torque sensor's lag is screened only where the gear's recorded law gives energy back,
+    which no physics does (the out-of-regime torque_filter recordings: a rod passed beside it)."""
+    chosen = _chosen(monkeypatch, {"torque_skew": 0.6, "link_flexibility": 0.77}, {})
+    assert chosen.best == "torque_skew"

@@ -1107,14 +1107,17 @@ def _decide(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[floa
 
 def _physics_first(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],
                    choice: _Choice, options: DiagnoseOptions, floor_cost: float, max_p: float) -> _Choice:
-    """A passing sensor effect gives way to the best physics candidate that passes too. A sensor
-    effect says the recording is wrong; one that shifts a signal in time takes up any physics
-    that lags (a link encoder's skew reads as a gear's damper, a bearing, a frictional lag) and
-    gains where several terms are still missing (the shipped arm's hysteretic route: a skew of
-    83 us against none recorded, the damper, 2SEP and the bearing each passing beside it). Named
-    after the physics, it is screened again next round against the model that holds it, where a
-    real skew still passes and the revision's removal drops a physics term it stood for."""
-    if choice.failed or EFFECTS[parts(choice.best)[-1]].site != "sensor":
+    """A passing sensor effect screened by default gives way to the best physics candidate that
+    passes too. A sensor effect says the recording is wrong; one that shifts a signal in time
+    takes up any physics that lags (a link encoder's skew reads as a gear's damper, a bearing, a
+    frictional lag) and gains where several terms are still missing (the shipped arm's
+    hysteretic route: a skew of 83 us against none recorded, the damper, 2SEP and the bearing
+    each passing beside it). Named after the physics, it is screened again next round against
+    the model that holds it, where a real skew still passes and the revision's removal drops a
+    physics term it stood for. One screened on request (``Effect.on_request``: the torque
+    sensor's, opened by a sign of the recording no physics gives) keeps its place."""
+    effect = EFFECTS[parts(choice.best)[-1]]
+    if choice.failed or effect.site != "sensor" or effect.on_request:
         return choice
     physics = sorted((k for k in screened if EFFECTS[parts(k)[-1]].site != "sensor"
                       and screened[k][0] < ref.cost_test), key=lambda k: screened[k][0])

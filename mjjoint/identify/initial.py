@@ -216,7 +216,7 @@ def _encoder_lag(delta: np.ndarray, torque: np.ndarray, link_rate: np.ndarray, d
     """Where the link encoder reads late by ``lag``, the measured deflection carries lag theta'
     beside the gear's (T - D delta') / k: ``sensor_skew.lag`` from delta = c + lag theta' -
     (D / k) delta' + T / k (least squares, k and D free), where it lies in the skew's range. The
-    damper's column keeps a gear's D / k (0.2 ms on the shipped arm) out of the skew. A start
+    damper's column keeps a gear that lags its deflection (a damper, a hysteresis) out of it. A start
     value only: friction on the rotor, which the gear does not carry, moves T by a term in theta'
     too."""
     cols = np.column_stack([np.ones_like(delta), link_rate, delta_rate, torque])
