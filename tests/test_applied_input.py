@@ -56,14 +56,16 @@ def test_simulate_says_where_the_input_exceeds_the_motors_range(tmp_path, capsys
     assert "u exceeds the motor's range of 5 N m" in err and "clipped" in err
 
 
-def test_a_range_widened_past_the_models_limits_scores_as_unstable_instead_of_stopping(axis):
-    """The axis's estimated g (~4 m/s^2 for the nominal rod's lever) gets a range three decades
-    either way, past ArmSpec's 100 m/s^2: a fit that tries its end scores it as the worst
-    prediction (``mjjoint fit`` stopped on "gravity=4067 is outside the allowed range")."""
+def test_a_value_past_the_models_limits_scores_as_unstable_instead_of_stopping(axis):
+    """The axis's estimated g (~4 m/s^2 for the nominal rod's lever) keeps the catalogue's range
+    (``Param.scale_free``: three decades either way reached past ArmSpec's 100 m/s^2, and
+    ``mjjoint fit`` stopped on "gravity=4067 is outside the allowed range"); a value past the
+    model's limits all the same scores as the worst prediction."""
     _, problem = axis
     g = next(p for p in problem.base.params if p.name == "gravity.g")
-    assert g.hi > 100.0
-    top = problem.base.with_values({"gravity.g": g.hi})
+    assert g.hi <= 100.0
+    problem.base.with_values({"gravity.g": g.hi}).model_params()  # raises if the arm refuses it
+    top = problem.base.with_values({"gravity.g": 1e3})
     assert not problem.predictor.stable(top)
     pred = problem.predictor.predict([top], problem.predictor.test)
     pred = pred[0] if isinstance(pred, list) else pred
