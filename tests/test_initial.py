@@ -210,7 +210,8 @@ def test_every_range_started_from_a_recording_is_one_the_model_accepts(g):
     at either end of its range builds a model too."""
     effects = ("coulomb_friction", "viscous_friction", "gravity", "load_friction", "linear_stiffness")
     base = Structure.create(effects, ArmSpec(), 160.0)
-    start = Estimate(CATALOGUE_ORDERS["force"], CATALOGUE_ORDERS["speed"], values={"gravity.g": g, "mass.tip": 3.5, "load_friction.viscous": 11.0})
+    start = Estimate(CATALOGUE_ORDERS["force"], CATALOGUE_ORDERS["speed"],
+                     values={"gravity.g": g, "mass.tip": 3.5, "load_friction.viscous": 11.0})
     started = base.started(start)
     param = next(p for p in started.params if p.name == "gravity.g")
     catalogue = EFFECTS["gravity"].params[0]
@@ -219,4 +220,3 @@ def test_every_range_started_from_a_recording_is_one_the_model_accepts(g):
     for p in started.params:
         for end in (p.lo, p.hi):
             started.with_values({p.name: end}).model_params()
-

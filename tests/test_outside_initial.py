@@ -8,8 +8,8 @@ import pytest
 
 from mjjoint.assets import ArmSpec
 from mjjoint.benchmark.independent.cases import make_case
-from mjjoint.cli import main
 from mjjoint.benchmark.independent.record import record
+from mjjoint.cli import main
 from mjjoint.identify.initial import estimate
 from mjjoint.identify.windows import Measured
 from mjjoint.problem import Inputs, load_problem
@@ -60,7 +60,8 @@ def test_a_bending_rod_keeps_the_catalogue_start(bending):
     """The rigid link's equation explains little of the bending rod's link torque, and its
     coefficients (a tip mass 3.5x the truth, a negative Coulomb level, a 200x bearing damping)
     would start the fit far off."""
-    assert not {"mass.tip", "gravity.g", "load_friction.fc", "load_friction.viscous"} & set(estimate(bending, ArmSpec()).values)
+    started = estimate(bending, ArmSpec()).values
+    assert not {"mass.tip", "gravity.g", "load_friction.fc", "load_friction.viscous"} & set(started)
 
 
 def test_a_gear_that_lags_its_deflection_is_not_read_as_a_late_link_encoder(bending):

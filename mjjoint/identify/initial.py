@@ -204,10 +204,11 @@ def estimate(measured, arm=None) -> Estimate:
             # side is not known: taken as the gear's, as a robot joint's mostly is)
             torque = m.gear_ratio * (smooth(u) + values["input_offset.offset"] - values["inertia.motor"] * a)
             where = (np.abs(v) > MOVING_SHARE * speed) & ~near_reversal(v, guard)
-        values.update(_encoder_lag(delta[where], torque[where], w[where], rate(delta)[where]))
+        delta_rate = rate(delta)[where]
+        values.update(_encoder_lag(delta[where], torque[where], w[where], delta_rate))
         if "linear_stiffness.k1" in values:
             offset = encoder_offset(delta[where], torque[where], values["linear_stiffness.k1"])
-        play = engaged_gear(delta[where], rate(delta)[where], torque[where])
+        play = engaged_gear(delta[where], delta_rate, torque[where])
     return Estimate(force, speed, values, resonance, offset, play)
 
 
