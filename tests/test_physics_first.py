@@ -43,3 +43,34 @@ def test_a_sensor_effect_the_recordings_sign_opened_keeps_its_place(monkeypatch)
     which no physics does (the out-of-regime torque_filter recordings: a rod passed beside it)."""
     chosen = _chosen(monkeypatch, {"torque_skew": 0.6, "link_flexibility": 0.77}, {})
     assert chosen.best == "torque_skew"
+
+
+def _freed(monkeypatch, costs: dict, fails: dict):
+    """``loop._freed_physics`` for a sensor_skew that passed with stand-ins held, given the screens
+    with every parameter free (held-out ``costs`` against a refitted model at 1; ``fails``: the
+    tests each key fails there)."""
+    def assess(predictor, ref, screened, key, alternatives, options, floor_cost, max_p):
+        return loop._Choice(key, SimpleNamespace(cost_test=screened[key][0]), 1.0 - screened[key][0], alternatives,
+                            {"p": 0.001, "windows": "10 held-out windows"}, fails.get(key, []), False)
+    monkeypatch.setattr(loop, "_assess", assess)
+    monkeypatch.setattr(loop, "_by_gear_law", lambda *args: args[3])
+    screened = {k: (c, SimpleNamespace(structure=k)) for k, c in costs.items()}
+    sensor = loop._Choice("sensor_skew", None, 0.2, [], {"p": 0.001, "windows": ""}, [], False)
+    return loop._freed_physics(None, SimpleNamespace(cost_test=1.0), screened, sensor, loop.DiagnoseOptions(), 0.0)
+
+
+def test_physics_freed_of_its_stand_ins_is_named_before_a_sensor_effect(monkeypatch):
+    """The hardening route's bearing: held stand-ins, its screen ended above the model; all free
+    it explains more than the skew does."""
+    chosen = _freed(monkeypatch, {"sensor_skew": 0.82, "load_friction": 0.43, "transmission_damping": 0.77}, {})
+    assert chosen is not None and chosen.best == "load_friction"
+    assert "named before sensor_skew" in chosen.consistency["windows"]
+
+
+def test_a_sensor_effect_physics_does_not_match_all_free_keeps_its_place(monkeypatch):
+    # a real skew explains more than any physics fitted freely
+    assert _freed(monkeypatch, {"sensor_skew": 0.1, "link_flexibility": 0.6}, {}) is None
+    # physics that fails its tests all free
+    assert _freed(monkeypatch, {"sensor_skew": 0.8, "load_friction": 0.5}, {"load_friction": ["p > 0.025"]}) is None
+    # the skew, all free, still the best that passes
+    assert _freed(monkeypatch, {"sensor_skew": 0.4, "load_friction": 0.9}, {}) is None
