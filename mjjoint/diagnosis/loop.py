@@ -1156,9 +1156,8 @@ def _freed_physics(predictor: Predictor, ref: FitResult, screened: dict[str, tup
     """The physics candidate to name instead of ``sensor``, a passing sensor effect screened by
     default while the model misses its noise floor, from the screens with every parameter free
     (``screened``, against ``ref``), or None. Held stand-ins can keep every physics screen from
-    passing where several terms are missing (the shipped arm's hardening route: the bearing's
-    screen, holding g and the rod, ended above the model it extends, while a 65 us link encoder
-    skew passed; all free, the bearing lowers the held-out cost by 57 % at 0.46 N m for 0.5).
+    passing where several terms are missing (a bearing's screen that holds gravity and the rod
+    bent toward it ends above the model it extends, while a link encoder skew takes up its lag).
     The physics passes at half the level (a second look, as the escalation's) and predicts the
     held-out windows at least as well as the sensor effect fitted the same way, so a real skew,
     which no physics term reproduces, keeps its place."""
