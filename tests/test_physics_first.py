@@ -45,10 +45,10 @@ def test_a_sensor_effect_the_recordings_sign_opened_keeps_its_place(monkeypatch)
     assert chosen.best == "torque_skew"
 
 
-def _freed(monkeypatch, costs: dict, fails: dict):
+def _freed(monkeypatch, costs: dict, fails: dict, rest: dict | None = None):
     """``loop._freed_physics`` for a sensor_skew that passed with stand-ins held, given the screens
-    with every parameter free (held-out ``costs`` against a refitted model at 1; ``fails``: the
-    tests each key fails there)."""
+    with every parameter free (held-out ``costs`` against a refitted model at 1, and ``rest`` of
+    those left on the subset; ``fails``: the tests each key fails there)."""
     def assess(predictor, ref, screened, key, alternatives, options, floor_cost, max_p):
         return loop._Choice(key, SimpleNamespace(cost_test=screened[key][0]), 1.0 - screened[key][0], alternatives,
                             {"p": 0.001, "windows": "10 held-out windows"}, fails.get(key, []), False)
@@ -56,7 +56,9 @@ def _freed(monkeypatch, costs: dict, fails: dict):
     monkeypatch.setattr(loop, "_by_gear_law", lambda *args: args[3])
     screened = {k: (c, SimpleNamespace(structure=k)) for k, c in costs.items()}
     sensor = loop._Choice("sensor_skew", None, 0.2, [], {"p": 0.001, "windows": ""}, [], False)
-    return loop._freed_physics(None, SimpleNamespace(cost_test=1.0), screened, sensor, loop.DiagnoseOptions(), 0.0)
+    rest = {k: (c, SimpleNamespace(structure=k)) for k, c in (rest or {}).items()}
+    return loop._freed_physics(None, SimpleNamespace(cost_test=1.0), screened, rest, sensor, loop.DiagnoseOptions(),
+                               0.0)
 
 
 def test_physics_freed_of_its_stand_ins_is_named_before_a_sensor_effect(monkeypatch):
@@ -74,3 +76,24 @@ def test_a_sensor_effect_physics_does_not_match_all_free_keeps_its_place(monkeyp
     assert _freed(monkeypatch, {"sensor_skew": 0.8, "load_friction": 0.5}, {"load_friction": ["p > 0.025"]}) is None
     # the skew, all free, still the best that passes
     assert _freed(monkeypatch, {"sensor_skew": 0.4, "load_friction": 0.9}, {}) is None
+    # the skew's screen left on the subset: its scaled estimate is the rival
+    assert _freed(monkeypatch, {"load_friction": 0.43}, {}, rest={"sensor_skew": 0.3}) is None
+    assert _freed(monkeypatch, {"load_friction": 0.43}, {}, rest={"sensor_skew": 0.6}).best == "load_friction"
+
+
+def test_the_round_is_screened_again_all_free_on_either_trigger():
+    """One escalation, two triggers: a failing best screen (inconsistent, or far from the floor)
+    asks the same question again; a passing default sensor effect while the model misses its
+    floor asks whether physics freed of its stand-ins does better."""
+    def choice(best, failed=(), inconsistent=False):
+        return loop._Choice(best, None, 0.1, [], {"p": 0.01, "windows": ""}, list(failed), inconsistent)
+    options = loop.DiagnoseOptions()
+    far = 2 * loop.FAR_FROM_FLOOR
+    assert loop._escalation(choice("backlash", ["p > 0.05"]), options, far, False)[1] is loop._second_look
+    assert loop._escalation(choice("backlash", ["p > 0.05"], True), options, 1.5, False)[1] is loop._second_look
+    assert loop._escalation(choice("backlash", ["p > 0.05"]), options, 1.5, False) is None
+    assert loop._escalation(choice("sensor_skew"), options, 1.5, False)[1] is loop._freed_physics
+    assert loop._escalation(choice("sensor_skew"), options, 1.5, True) is None
+    assert loop._escalation(choice("torque_skew"), options, 1.5, False) is None  # on request
+    assert loop._escalation(choice("backlash"), options, far, False) is None  # passing physics
+    assert loop._escalation(choice("backlash", ["p > 0.05"]), loop.DiagnoseOptions(free_all=False), far, False) is None

@@ -428,33 +428,20 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         with phases("acceptance tests"):
             choice, screen = _decide(predictor, ref, screened, options, floor_cost), "stand-ins held"
         far = floor.worst(current.nrmse_test)
-        if choice.failed and options.free_all and (choice.only_inconsistent or far > FAR_FROM_FLOOR):
-            why = (f"fails only the rank test ({choice.failed[0]})" if choice.only_inconsistent else
-                   f"fails while the model misses {far:.3g} times its noise floor")
+        escalation = _escalation(choice, options, far, floor.explained(current.nrmse_test))
+        if escalation is not None:
+            why, second_look = escalation
             say(f"  best candidate {choice.best} {why}; screening again with every parameter free, "
                 "from the model refitted")
-            ref, screened, rest, above = _screen(predictor, current, where, search, say, clock, unstable, stepped,
-                                                 signs, free_all=True)
-            if ref.cost_test < current.cost_test:  # the same structure, fitted further
-                current = history[-1] = ref
-                initial = initial if steps else ref
-            # A second look at the same question: each look at half the level keeps the pair at
-            # max_p (Bonferroni), so the escalation cannot raise the false-addition rate.
-            with phases("acceptance tests"):
-                choice, screen = _decide(predictor, ref, screened, options, floor_cost, options.max_p / 2), "all free"
-        elif (not choice.failed and options.free_all and _by_default_sensor(choice.best)
-              and not floor.explained(current.nrmse_test)):
-            say(f"  best candidate {choice.best} is a sensor effect while the model misses {far:.3g} times its noise "
-                "floor; screening again with every parameter free, from the model refitted")
-            f_ref, f_screened, f_rest, f_above = _screen(predictor, current, where, search, say, clock, unstable,
+            e_ref, e_screened, e_rest, e_above = _screen(predictor, current, where, search, say, clock, unstable,
                                                          stepped, signs, free_all=True)
             with phases("acceptance tests"):
-                f_choice = _freed_physics(predictor, f_ref, f_screened, choice, options, floor_cost)
-            if f_choice is not None:
-                if f_ref.cost_test < current.cost_test:  # the same structure, fitted further
-                    current = history[-1] = f_ref
-                    initial = initial if steps else f_ref
-                choice, ref, screened, rest, above, screen = f_choice, f_ref, f_screened, f_rest, f_above, "all free"
+                e_choice = second_look(predictor, e_ref, e_screened, e_rest, choice, options, floor_cost)
+            if e_choice is not None:
+                if e_ref.cost_test < current.cost_test:  # the same structure, fitted further
+                    current = history[-1] = e_ref
+                    initial = initial if steps else e_ref
+                choice, ref, screened, rest, above, screen = e_choice, e_ref, e_screened, e_rest, e_above, "all free"
         generic = (generic_candidates(ref.structure, where, refused(revisions)) if choice.failed and options.generic
                    else ())
         generic_rejected = ""
@@ -1130,8 +1117,7 @@ def _physics_first(predictor: Predictor, ref: FitResult, screened: dict[str, tup
     the model that holds it, where a real skew still passes and the revision's removal drops a
     physics term it stood for. One screened on request (``Effect.on_request``: the torque
     sensor's, opened by a sign of the recording no physics gives) keeps its place."""
-    effect = EFFECTS[parts(choice.best)[-1]]
-    if choice.failed or effect.site != "sensor" or effect.on_request:
+    if choice.failed or not _by_default_sensor(choice.best):
         return choice
     physics = sorted((k for k in screened if EFFECTS[parts(k)[-1]].site != "sensor"
                       and screened[k][0] < ref.cost_test), key=lambda k: screened[k][0])
@@ -1145,6 +1131,31 @@ def _physics_first(predictor: Predictor, ref: FitResult, screened: dict[str, tup
     return choice
 
 
+def _escalation(choice: _Choice, options: DiagnoseOptions, far: float, explained: bool):
+    """(why, second look) where the round is screened once more with every parameter free from
+    the model refitted (module doc, step 3), or None. The second look, called as
+    ``look(predictor, ref, screened, rest, choice, options, floor_cost)`` on that screening, gives
+    the choice that replaces this round's, or None to keep it. Each look at half the level keeps
+    the pair at max_p (Bonferroni), so a second look cannot raise the false-addition rate."""
+    if not options.free_all:
+        return None
+    if choice.failed and (choice.only_inconsistent or far > FAR_FROM_FLOOR):
+        why = (f"fails only the rank test ({choice.failed[0]})" if choice.only_inconsistent else
+               f"fails while the model misses {far:.3g} times its noise floor")
+        return why, _second_look
+    if not choice.failed and _by_default_sensor(choice.best) and not explained:
+        return f"is a sensor effect while the model misses {far:.3g} times its noise floor", _freed_physics
+    return None
+
+
+def _second_look(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],
+                 rest: dict[str, tuple[float, FitResult]], failed: _Choice, options: DiagnoseOptions,
+                 floor_cost: float) -> _Choice:
+    """The choice of the screens with every parameter free (against ``ref``) where the
+    round's ``failed``: the same question, asked of fits that may bend every term."""
+    return _decide(predictor, ref, screened, options, floor_cost, options.max_p / 2)
+
+
 def _by_default_sensor(key: str) -> bool:
     """Whether candidate ``key`` names a sensor effect screened by default (not on request)."""
     effect = EFFECTS[parts(key)[-1]]
@@ -1152,17 +1163,19 @@ def _by_default_sensor(key: str) -> bool:
 
 
 def _freed_physics(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],
-                   sensor: _Choice, options: DiagnoseOptions, floor_cost: float) -> _Choice | None:
+                   rest: dict[str, tuple[float, FitResult]], sensor: _Choice, options: DiagnoseOptions,
+                   floor_cost: float) -> _Choice | None:
     """The physics candidate to name instead of ``sensor``, a passing sensor effect screened by
     default while the model misses its noise floor, from the screens with every parameter free
-    (``screened``, against ``ref``), or None. Held stand-ins can keep every physics screen from
-    passing where several terms are missing (a bearing's screen that holds gravity and the rod
-    bent toward it ends above the model it extends, while a link encoder skew takes up its lag).
-    The physics passes at half the level (a second look, as the escalation's) and predicts the
-    held-out windows at least as well as the sensor effect fitted the same way, so a real skew,
+    (``screened`` against ``ref``; ``rest``: those left on the subset), or None. Held stand-ins
+    can keep every physics screen from passing where several terms are missing (a bearing's
+    screen that holds gravity and the rod bent toward it ends above the model it extends, while
+    a link encoder skew takes up its lag). The physics passes at half the level (a second look,
+    as the escalation's) and predicts the held-out windows at least as well as the sensor effect
+    fitted the same way (its subset estimate where its screen was not finished), so a real skew,
     which no physics term reproduces, keeps its place."""
     choice = _decide(predictor, ref, screened, options, floor_cost, options.max_p / 2)
-    rival = screened.get(sensor.best, (np.inf, None))[0]
+    rival = {**rest, **screened}.get(sensor.best, (np.inf, None))[0]
     if choice.failed or _by_default_sensor(choice.best) or not choice.cand.cost_test <= rival:
         return None
     choice.consistency["windows"] += (f"; named before {sensor.best.replace(BUNDLE, ' + ')} (a sensor effect, "
