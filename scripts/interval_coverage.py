@@ -29,7 +29,7 @@ from mjjoint.benchmark.score import write_case_recording
 from mjjoint.cli.fit import RESTARTS
 from mjjoint.diagnosis.floor import noise_floor
 from mjjoint.identify.effects import EFFECTS
-from mjjoint.identify.fit import STEP_BIASED, check_intervals, fit
+from mjjoint.identify.fit import WIDENED, check_intervals, fit
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.recordings import read_recording
@@ -39,7 +39,7 @@ EFFECTS_SCORED = tuple(e for e in TRUTHS if e not in ("none", "gravity"))
 
 def covered(result, truth: Structure, explained: bool) -> dict[str, tuple[bool, bool]]:
     """{parameter: (interval holds the truth, parameter identifiable in this fit)}."""
-    flagged = {w.split(" ")[0] for w in result.warnings if STEP_BIASED not in w}  # a widened interval counts
+    flagged = {w.split(" ")[0] for w in result.warnings if WIDENED not in w}  # a widened interval counts
     out = {}
     for name, (lo, hi) in result.intervals.items():
         value = truth.values[name]
@@ -61,7 +61,7 @@ def main(argv=None) -> int:
                     help="whose intervals are checked against the model (fit.check_intervals): the concealed "
                          "effect's parameters (as the diagnosis checks the effects it names), every "
                          "parameter's, or none (the linearised intervals); with own or all, every interval is also "
-                         "widened by its step bias, as the diagnosis and mjjoint fit widen them")
+                         "widened by its step bias and its twin bias, as the diagnosis and mjjoint fit widen them")
     args = ap.parse_args(argv)
     unknown = [e for e in args.effects.split(",") if e not in TRUTHS or e == "none"]
     if unknown:

@@ -10,8 +10,8 @@ import pytest
 
 from mjjoint import Multisine, Simulator
 from mjjoint.assets import ArmSpec
-from mjjoint.diagnosis.floor import (EXPLAINED_RATIO, RESOLUTION, WINDOWING_TRUST, Floor, _analog_noise, noise_floor,
-                                     quantisation_step, sensor_noise)
+from mjjoint.diagnosis.floor import EXPLAINED_RATIO, RESOLUTION, WINDOWING_TRUST, Floor, noise_floor
+from mjjoint.identify.twin import analog_noise, quantisation_step, sensor_noise
 from mjjoint.identify import windows
 from mjjoint.identify.fit import evaluate
 from mjjoint.identify.structure import Structure
@@ -85,7 +85,7 @@ def test_a_twin_of_a_sensor_that_only_rounds_draws_no_noise_before_rounding():
         noisy = x + np.random.default_rng(3).normal(0.0, sigma, t.size)
         noise, found = sensor_noise(np.round(noisy / step) * step, RATE)
         assert found == pytest.approx(step, rel=1e-6)
-        analog = _analog_noise(x, noise, found, m)
+        analog = analog_noise(x, noise, found, m)
         assert analog == pytest.approx(sigma, abs=0.25 * 2e-3), (sigma, analog, noise)
 
 

@@ -37,7 +37,7 @@ def test_only_screens_whose_training_cost_ends_above_the_model_they_extend_did_n
 def test_quantisation_step_survives_printed_precision():
     """A 15-bit encoder read at ~100 rad and printed to 10 significant digits: its smallest
     change carries the step to ~1e-4 only, which a change of 1000 steps multiplies."""
-    from mjjoint.diagnosis.floor import quantisation_step
+    from mjjoint.identify.twin import quantisation_step
     lsb = 2 * np.pi / 2 ** 15
     t = np.arange(0, 6, 1e-3)
     q = 100 * np.sin(2 * np.pi * 0.25 * t) + 0.01 * np.random.default_rng(0).normal(size=t.size)

@@ -14,7 +14,7 @@ from mjjoint.benchmark.cases import GEAR_RATIO, make_case
 from mjjoint.benchmark.score import write_case_recording
 from mjjoint.identify.effect import Param
 from mjjoint.identify import fit as fit_module
-from mjjoint.identify.fit import STEP_BIASED, _at_fit, check_intervals, fit, jacobian, widened
+from mjjoint.identify.fit import STEP_BIASED, _at_fit, _step_biased, check_intervals, fit, jacobian, widened
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.recordings import read_recording
@@ -25,11 +25,12 @@ def test_an_interval_is_joined_with_itself_moved_by_the_bias():
     structure = SimpleNamespace(params=[lin, log])
     at = SimpleNamespace(names=["a.x", "b.y"], optimum=SimpleNamespace(x=np.array([1.0, 0.0])))
     spans = {"a.x": (0.9, 1.1), "b.y": (0.5, 2.0)}
-    out, warnings = widened(structure, at, ["a.x", "b.y"], np.array([0.3, -math.log(4.0)]), spans, [])
+    out, warnings = widened(structure, at, ["a.x", "b.y"], np.array([0.3, -math.log(4.0)]), spans, [],
+                            _step_biased)
     assert out["a.x"] == pytest.approx((0.9, 1.4))          # the upper end moved by the shift
     assert out["b.y"] == pytest.approx((0.125, 2.0))         # the lower end, in the log coordinate
     assert len(warnings) == 2 and "a.x = 1" in warnings[0]   # both shifts beyond their half-widths
-    small, quiet = widened(structure, at, ["a.x"], np.array([0.05, 0.0]), spans, [])
+    small, quiet = widened(structure, at, ["a.x"], np.array([0.05, 0.0]), spans, [], _step_biased)
     assert small["a.x"] == pytest.approx((0.9, 1.15)) and not quiet  # within the noise: widened, no warning
 
 

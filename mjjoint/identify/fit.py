@@ -16,7 +16,8 @@ share its start-state error); a parameter whose interval is wider than its value
 on a bound, is flagged. ``check_intervals`` then tests chosen intervals against the cost itself
 (``intervals.profile_intervals``): moved where it is not quadratic over them, or flagged, and
 widened by the step's bias where the model's discretisation moves the estimate more than the
-noise does (``step_bias``).
+noise does (``step_bias``), and by the fit's own bias, the move the same fit makes on the fitted
+model's twin of the recording (``twin_bias``).
 
 Robust cost over windows (``robust=True``; the diagnosis's refits and final estimate, docs/diagnosis.md):
 the fitted objective is sum_i s log(1 + c_i / s) over the windows' mean squared residuals c_i
@@ -44,6 +45,7 @@ from mujoco import minimize
 from .effects import EFFECTS
 from .intervals import EIG_FLOOR, Optimum, intervals, profile_intervals, residual_variance
 from .structure import Structure
+from .twin import Twin
 from .windows import Predictor
 
 _BAD = 1e3  # residual given to an unstable (NaN) prediction: far worse than any real fit
@@ -602,8 +604,9 @@ def check_intervals(predictor: Predictor, result: FitResult, names, biased=None)
     (``intervals.profile_intervals``): each end moved to where the windowed cost, the other
     parameters following their first-order re-fit, rises as much as the interval assumes, or
     the parameter flagged where the cost is not quadratic over it; then those of ``biased``
-    (default ``names``) widened by the step's bias (``step_bias``). A few rollouts of the fit's
-    windows per end (PROFILE_EVALS at most) and three for the bias, counted in ``rollouts``."""
+    (default ``names``) widened by the step's bias (``step_bias``) and by the fit's own
+    (``twin_bias``). A few rollouts of the fit's windows per end (PROFILE_EVALS at most), three
+    for the step's bias and a fit from the estimate for the twin's, counted in ``rollouts``."""
     at = result.at_optimum
     biased = names if biased is None else biased
     if at is None or not (names or biased):
@@ -612,11 +615,16 @@ def check_intervals(predictor: Predictor, result: FitResult, names, biased=None)
     residual = _at_fit(predictor, result.structure, at)
     spans, warnings, _ = profile_intervals(lambda xs: np.sum(residual(xs) ** 2, axis=0), at.optimum, at.names,
                                            result.structure, names, result.intervals, result.warnings)
-    shift = step_bias(predictor, result.structure, at, residual) if biased else None
-    if shift is not None:
-        spans, warnings = widened(result.structure, at, biased, shift, spans, warnings)
+    twin_rollouts = 0.0
+    if biased:
+        shift = step_bias(predictor, result.structure, at, residual)
+        if shift is not None:
+            spans, warnings = widened(result.structure, at, biased, shift, spans, warnings, _step_biased)
+        shift, twin_rollouts = twin_bias(predictor, result, at)
+        if shift is not None:
+            spans, warnings = widened(result.structure, at, biased, shift, spans, warnings, _twin_biased)
     return dataclasses.replace(result, intervals=spans, warnings=warnings, at_optimum=None,  # checked once
-                               rollouts=result.rollouts + predictor.rollouts - roll0,
+                               rollouts=result.rollouts + predictor.rollouts - roll0 + twin_rollouts,
                                seconds=result.seconds + time.perf_counter() - start)
 
 
@@ -636,8 +644,8 @@ def jacobian(residual, at: "_AtOptimum", r_opt: np.ndarray) -> np.ndarray:
 
 def reported(predictor: Predictor, result: FitResult) -> FitResult:
     """``result`` as ``mjjoint fit`` and ``mjjoint.fit`` report it: every interval widened by its
-    estimate's step bias (``step_bias``; the profile check is the diagnosis's, for the effects it
-    names, a few rollouts an end)."""
+    estimate's step bias and the fit's own (``step_bias``, ``twin_bias``; the profile check is
+    the diagnosis's, for the effects it names, a few rollouts an end)."""
     return check_intervals(predictor, result, [], biased=list(result.intervals))
 
 
@@ -648,8 +656,9 @@ STEP_BIAS_FACTOR = 2.0
 # Singular values of the Jacobian below this share of the largest span directions the fit does
 # not determine (``intervals.EIG_FLOOR`` on J'J): the bias has no component along them.
 STEP_RCOND = 1e-7
-# What a widened interval's warning says: the interval is calibrated, the estimate step-biased.
+# What a widened interval's warning says: the interval is calibrated, the estimate biased.
 STEP_BIASED = "the model's step biases it more than the noise scatters it"
+WIDENED = "its 95 % interval is widened to hold that"
 
 
 def step_bias(predictor: Predictor, structure: Structure, at: "_AtOptimum", residual) -> np.ndarray | None:
@@ -670,12 +679,46 @@ def step_bias(predictor: Predictor, structure: Structure, at: "_AtOptimum", resi
     return STEP_BIAS_FACTOR * move
 
 
-def widened(structure: Structure, at: "_AtOptimum", names, shift: np.ndarray, spans: dict, warnings: list
-            ) -> tuple[dict, list]:
-    """``spans`` of ``names`` widened by their estimates' discretisation bias ``shift``
-    (``step_bias``): each interval joined with itself moved by the shift, so the end on the
-    shift's side moves by it; a warning says so where the shift exceeds the interval's half-width
-    on that side."""
+def twin_bias(predictor: Predictor, result: FitResult, at: "_AtOptimum") -> tuple[np.ndarray | None, float]:
+    """(The fit's own bias in the optimiser's coordinates, or None where the model has no twin of
+    the recording; the rollouts it took): minus the move of the same fit (its parameters,
+    windows and loss) repeated on a noisy twin the fitted model makes of the recording
+    (``identify.twin``), started at the estimate, the twin's truth. What the fit moves a right
+    model by there is what reconstructing the windows' start states from the samples does to it
+    (velocities differentiated over a stencil, hidden states led in): a systematic move, the same
+    on a twin without noise, which the intervals' noise model (each window's start error its
+    own) does not hold: a dead time estimated 3-5 us short against intervals of +-2-4 us
+    (``tests/test_twin_bias.py``). One draw of the noise therefore measures it."""
+    twin = Twin(predictor, result.structure).draw(np.random.default_rng(predictor.design.seed), predictor.fit_signals)
+    if twin is None:
+        return None, 0.0
+    refit = fit(twin, result.structure, at.names, max_iter=TWIN_ITER, windows=at.windows, robust=result.robust)
+    if not np.isfinite(refit.cost_train):
+        return None, refit.rollouts
+    return at.optimum.x - refit.structure.vector(at.names), refit.rollouts
+
+
+# The twin's fit starts at its truth and moves by the bias alone: a few iterations.
+TWIN_ITER = 10
+
+
+def _step_biased(name: str, value: str, without: str) -> str:
+    return (f"{name} = {value}: {STEP_BIASED} (without a step about {without}: its move at half the step, "
+            f"linearised, doubled); {WIDENED}")
+
+
+def _twin_biased(name: str, value: str, without: str) -> str:
+    return (f"{name} = {value}: the fit moves it on the model's own twin of the recording more than the noise "
+            f"scatters it (its windows' start states, reconstructed from the samples; without that bias about "
+            f"{without}); {WIDENED}")
+
+
+def widened(structure: Structure, at: "_AtOptimum", names, shift: np.ndarray, spans: dict, warnings: list,
+            why) -> tuple[dict, list]:
+    """``spans`` of ``names`` widened by their estimates' bias ``shift`` (``step_bias``,
+    ``twin_bias``): each interval joined with itself moved by the shift, so the end on the
+    shift's side moves by it; a warning (``why(name, value, value without the bias)``) says so
+    where the shift exceeds the interval's half-width on that side."""
     params = {p.name: p for p in structure.params}
     spans, warnings = dict(spans), list(warnings)
     for name in names:
@@ -690,9 +733,7 @@ def widened(structure: Structure, at: "_AtOptimum", names, shift: np.ndarray, sp
         moved = p.from_unit(p.to_unit(end) + d)
         spans[name] = (low, moved) if d > 0 else (moved, high)
         if abs(d) > abs(p.to_unit(end) - x):
-            warnings.append(f"{name} = {p.from_unit(x):.4g}: {STEP_BIASED} (without a step about "
-                            f"{p.from_unit(x + d):.4g}: its move at half the step, linearised, doubled); its 95 % "
-                            "interval is widened to hold that")
+            warnings.append(why(name, f"{p.from_unit(x):.4g}", f"{p.from_unit(x + d):.4g}"))
     return spans, warnings
 
 

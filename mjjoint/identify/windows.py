@@ -434,10 +434,10 @@ class Predictor:
         """The joint the recording measures, in ``model``."""
         return joint_indices(model)[0]
 
-    def on(self, measured: Measured) -> "Predictor":
+    def on(self, measured: Measured, fit_signals: tuple[str, ...] | None = None) -> "Predictor":
         """A predictor of the same model kind and windows for other measurements (a twin of the
-        recording, ``diagnosis.floor``), scoring every signal they hold."""
-        return Predictor(measured, self.design, self.nthread)
+        recording, ``identify.twin``), scoring ``fit_signals`` (default every signal they hold)."""
+        return Predictor(measured, self.design, self.nthread, fit_signals)
 
     # ---- measured ----------------------------------------------------------------------
     def measured_windows(self) -> dict[str, np.ndarray | None]:
@@ -448,8 +448,14 @@ class Predictor:
 
     @property
     def signals(self) -> tuple[str, ...]:
+        """The signals the cost scores."""
         return tuple(s for s in SIGNALS if self.meas.get(s) is not None
                      and (self.fit_signals is None or s in self.fit_signals))
+
+    @property
+    def reported_signals(self) -> tuple[str, ...]:
+        """Every signal the recording holds, scored or not (the NRMSE reports each)."""
+        return tuple(s for s in ("q", "theta", "delta", "tau") if self.meas.get(s) is not None)
 
     # ---- prediction --------------------------------------------------------------------
     def predict(self, structures: list[Structure], windows: np.ndarray | None = None,

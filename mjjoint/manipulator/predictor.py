@@ -28,9 +28,9 @@ class LoadedPredictor(Predictor):
         self.load = load
         self.describe = describe  # where the load comes from, for reports
 
-    def on(self, measured: Measured) -> "LoadedPredictor":
+    def on(self, measured: Measured, fit_signals: tuple[str, ...] | None = None) -> "LoadedPredictor":
         """The same load on other measurements of the same motion (a twin on the recording's grid)."""
-        return LoadedPredictor(measured, self.load, self.design, self.nthread, describe=self.describe)
+        return LoadedPredictor(measured, self.load, self.design, self.nthread, fit_signals, describe=self.describe)
 
     def _controls(self, model, i0: np.ndarray, n: int, delay: float, ji) -> np.ndarray:
         ctrl = super()._controls(model, i0, n, delay, ji)

@@ -132,10 +132,10 @@ class ArmPredictor(Predictor):
         self._prescribed: list | None = None  # ``_others``
         self._hidden_run: tuple | None = None  # ``_hidden``
 
-    def on(self, measured: Measured) -> "ArmPredictor":
+    def on(self, measured: Measured, fit_signals: tuple[str, ...] | None = None) -> "ArmPredictor":
         """The same arm and other joints' motion for other measurements of joint j (a twin)."""
         return ArmPredictor(measured, self.arm, self.j, self.view, self.motion, self.design, self.nthread,
-                            describe=self.describe)
+                            fit_signals, describe=self.describe)
 
     def _model(self, structure: Structure):
         arm, weight = arm_for(self.arm, self.j, structure, self.view)
