@@ -84,3 +84,25 @@ def test_a_twin_unlike_the_recording_widens_nothing(dead_time, monkeypatch):
     assert shift is None and rollouts == 0.0
     twins = Twin(predictor, result.structure)
     assert twins.draw(np.random.default_rng(0)) is None and "not like the recording" in twins.note
+
+
+def test_mjjoint_fit_runs_the_fitted_model_free_once_for_the_intervals_and_the_floor(dead_time, monkeypatch):
+    # The twin's bias and the noise floor are both drawn from the fitted model's one free run.
+    from argparse import Namespace
+    from types import SimpleNamespace
+
+    from mjjoint.cli.fit import fitted
+    from mjjoint.diagnosis.floor import judged
+
+    predictor, result, _ = dead_time
+    runs = []
+    free_run = Predictor.free_run
+    monkeypatch.setattr(Predictor, "free_run", lambda self, s: runs.append(s) or free_run(self, s))
+    reported, floor = fitted(SimpleNamespace(predictor=predictor, base=result.structure),
+                             Namespace(max_iter=2, restarts=0), None)
+    assert len(runs) == 1 and runs[0] is reported.structure
+    # The same as each part making its own.
+    alone = fit_module.reported(predictor, fit(predictor, result.structure, max_iter=2, restarts=0))
+    assert alone.intervals == reported.intervals
+    assert judged(predictor, alone)[1].twin == floor.twin
+    assert len(runs) == 3

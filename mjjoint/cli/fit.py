@@ -57,8 +57,10 @@ def fitted(problem: Problem, args: argparse.Namespace, progress):
     floor)."""
     from ..diagnosis.floor import judged
     from ..identify.fit import fit, reported
+    from ..identify.twin import Twin
     result = fit(problem.predictor, problem.base, max_iter=args.max_iter, progress=progress, restarts=args.restarts)
-    result, floor, _ = judged(problem.predictor, reported(problem.predictor, result))
+    twin = Twin(problem.predictor, result.structure)  # one free run for the intervals' bias and the floor
+    result, floor, _ = judged(problem.predictor, reported(problem.predictor, result, twin), twin)
     return result, floor
 
 

@@ -104,29 +104,32 @@ UNEXPLAINED_INTERVALS = ("the model misses the recording above its noise floor: 
                          "model and understate the uncertainty")
 
 
-def judged(predictor: Predictor, result: FitResult) -> tuple[FitResult, Floor, bool]:
+def judged(predictor: Predictor, result: FitResult, twin: Twin | None = None) -> tuple[FitResult, Floor, bool]:
     """``result`` judged against the floor of its own twin (``noise_floor``): (the result, with
     the intervals' warning where it misses above the floor, the floor, whether it explains the
     recording). An interval is the spread of estimates a right model would give; a model that
-    misses the recording above its floor carries the miss in its parameters, uncounted."""
-    floor = noise_floor(predictor, result.structure)
+    misses the recording above its floor carries the miss in its parameters, uncounted.
+    ``twin``: the result's ``Twin``, where the caller has made it already."""
+    floor = noise_floor(predictor, result.structure, twin=twin)
     explained = floor.explained(result.nrmse_test)
     if not explained:
         result = replace(result, warnings=[*result.warnings, UNEXPLAINED_INTERVALS])
     return result, floor, explained
 
 
-def noise_floor(predictor: Predictor, structure: Structure | None = None, seed: int = 0) -> Floor:
-    """The floor of the recording behind ``predictor``; with ``structure``, its twin too (module doc)."""
+def noise_floor(predictor: Predictor, structure: Structure | None = None, seed: int = 0,
+                twin: Twin | None = None) -> Floor:
+    """The floor of the recording behind ``predictor``; with ``structure``, its twin too (module doc),
+    drawn from ``twin`` where given (``structure``'s, made by the caller)."""
     windows = predictor.test
     signals = predictor.reported_signals
     noise, quantum = sensors(predictor.m)
     spread = {s: predictor.spread(s, windows) for s in signals}
     measurement = {s: noise[s] / spread[s] for s in signals}
-    twin, note = {}, ""
+    own, note = {}, ""
     if structure is not None:
-        twin, note = _twin_floor(Twin(predictor, structure, noise, quantum), signals, seed)
-    return Floor(noise, quantum, measurement, twin, note, signals, tuple(predictor.signals))
+        own, note = _twin_floor(twin or Twin(predictor, structure, noise, quantum), signals, seed)
+    return Floor(noise, quantum, measurement, own, note, signals, tuple(predictor.signals))
 
 
 def _twin_floor(twins: Twin, signals: tuple[str, ...], seed: int) -> tuple[dict[str, float], str]:

@@ -117,6 +117,7 @@ from ..identify.effects import EFFECTS, GENERIC, ON_REQUEST, base_params, incomp
 from ..identify.fit import (FitResult, check_intervals, finish, fit, fits_from, fitted_on_both, lowest, restart_points,
                             training_ratio, window_costs)
 from ..identify.structure import Structure
+from ..identify.twin import Twin
 from ..identify.windows import Predictor
 from .clock import Phases, ScreenClock
 from .features import operating_conditions, reversal_proximity
@@ -578,8 +579,9 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     # The named effects' intervals checked against the model, every interval widened by its
     # estimate's step bias (identify.fit.check_intervals).
     named = [name for s in steps for name in s.parameters]
+    twin = Twin(predictor, current.structure)  # one free run for the intervals' bias and the floor
     with phases("interval check"):
-        current = check_intervals(predictor, current, named, biased=list(current.intervals))
+        current = check_intervals(predictor, current, named, biased=list(current.intervals), twin=twin)
     current = with_held_noted(current, named)
     with phases("locate"):
         # The last round's model, unchanged since (nothing added, the final robust estimate not
@@ -588,7 +590,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
             residual_location(predictor, current.structure)
     say("noise floor: the final model's simulated twin of the recording")
     with phases("noise floor"):
-        current, floor, explained = judged(predictor, current)
+        current, floor, explained = judged(predictor, current, twin)
     bounds = stand_ins(current)
     if explained:
         unresolved = {}

@@ -599,14 +599,15 @@ class _AtOptimum:
     point: np.ndarray
 
 
-def check_intervals(predictor: Predictor, result: FitResult, names, biased=None) -> FitResult:
+def check_intervals(predictor: Predictor, result: FitResult, names, biased=None, twin: Twin | None = None) -> FitResult:
     """The fit with the intervals of ``names`` checked against the model itself
     (``intervals.profile_intervals``): each end moved to where the windowed cost, the other
     parameters following their first-order re-fit, rises as much as the interval assumes, or
     the parameter flagged where the cost is not quadratic over it; then those of ``biased``
     (default ``names``) widened by the step's bias (``step_bias``) and by the fit's own
     (``twin_bias``). A few rollouts of the fit's windows per end (PROFILE_EVALS at most), three
-    for the step's bias and a fit from the estimate for the twin's, counted in ``rollouts``."""
+    for the step's bias and a fit from the estimate for the twin's, counted in ``rollouts``;
+    ``twin``: the result's ``Twin``, where the caller has made it already."""
     at = result.at_optimum
     biased = names if biased is None else biased
     if at is None or not (names or biased):
@@ -620,7 +621,7 @@ def check_intervals(predictor: Predictor, result: FitResult, names, biased=None)
         shift = step_bias(predictor, result.structure, at, residual)
         if shift is not None:
             spans, warnings = widened(result.structure, at, biased, shift, spans, warnings, _step_biased)
-        shift, twin_rollouts = twin_bias(predictor, result, at)
+        shift, twin_rollouts = twin_bias(predictor, result, at, twin)
         if shift is not None:
             spans, warnings = widened(result.structure, at, biased, shift, spans, warnings, _twin_biased)
     return dataclasses.replace(result, intervals=spans, warnings=warnings, at_optimum=None,  # checked once
@@ -642,11 +643,11 @@ def jacobian(residual, at: "_AtOptimum", r_opt: np.ndarray) -> np.ndarray:
     return fd_jacobian(residual, at.point, [at.optimum.lo[:, None], at.optimum.hi[:, None]], r)[1]
 
 
-def reported(predictor: Predictor, result: FitResult) -> FitResult:
+def reported(predictor: Predictor, result: FitResult, twin: Twin | None = None) -> FitResult:
     """``result`` as ``mjjoint fit`` and ``mjjoint.fit`` report it: every interval widened by its
     estimate's step bias and the fit's own (``step_bias``, ``twin_bias``; the profile check is
     the diagnosis's, for the effects it names, a few rollouts an end)."""
-    return check_intervals(predictor, result, [], biased=list(result.intervals))
+    return check_intervals(predictor, result, [], biased=list(result.intervals), twin=twin)
 
 
 # The fitted model's step error converges at first order (docs/design.md, "Integration"): the
@@ -679,7 +680,8 @@ def step_bias(predictor: Predictor, structure: Structure, at: "_AtOptimum", resi
     return STEP_BIAS_FACTOR * move
 
 
-def twin_bias(predictor: Predictor, result: FitResult, at: "_AtOptimum") -> tuple[np.ndarray | None, float]:
+def twin_bias(predictor: Predictor, result: FitResult, at: "_AtOptimum",
+              twin: Twin | None = None) -> tuple[np.ndarray | None, float]:
     """(The fit's own bias in the optimiser's coordinates, or None where the model has no twin of
     the recording; the rollouts it took): minus the move of the same fit (its parameters,
     windows and loss) repeated on a noisy twin the fitted model makes of the recording
@@ -688,8 +690,10 @@ def twin_bias(predictor: Predictor, result: FitResult, at: "_AtOptimum") -> tupl
     (velocities differentiated over a stencil, hidden states led in): a systematic move, the same
     on a twin without noise, which the intervals' noise model (each window's start error its
     own) does not hold: a dead time estimated 3-5 us short against intervals of +-2-4 us
-    (``tests/test_twin_bias.py``). One draw of the noise therefore measures it."""
-    twin = Twin(predictor, result.structure).draw(np.random.default_rng(predictor.design.seed), predictor.fit_signals)
+    (``tests/test_twin_bias.py``). One draw of the noise therefore measures it. ``twin``: the
+    result's ``Twin``, made here where None."""
+    twin = (twin or Twin(predictor, result.structure)).draw(np.random.default_rng(predictor.design.seed),
+                                                            predictor.fit_signals)
     if twin is None:
         return None, 0.0
     refit = fit(twin, result.structure, at.names, max_iter=TWIN_ITER, windows=at.windows, robust=result.robust)
