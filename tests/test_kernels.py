@@ -156,6 +156,22 @@ def test_twosep_step(s, w, h, p):
     assert all(close(g, r, sc) for g, r, sc in zip(got, want, scales)), (got, want)
 
 
+@SETTINGS
+@given(s=reachable_2sep_states(), ws=st.lists(velocity, min_size=1, max_size=12), h=finite(1e-5, 1e-2), p=twoseps())
+@example(s=(0.08, 1e-3, 0.08, 0.02, 1.0), ws=[0.2, -0.2, -0.2, 0.0, 0.3], h=5e-4, p=TwoSEP())  # reversals, a stop
+def test_the_carried_presliding_share_steps_as_afresh_bit_for_bit(s, ws, h, p):
+    # A caller that steps on carries e^{-K|q_r|} from each step's end (one exp a step, not two):
+    # the states are those of each step taken afresh, to the last bit.
+    fresh, carried = tuple(s), tuple(s)
+    unspent = twosep.presliding_unspent(s[3], p.k)
+    for w in ws:
+        args = (w, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym, p.sigma_asym)
+        fresh = twosep.twosep_step(*fresh, *args)
+        *carried, unspent = twosep.twosep_step_from(*carried, *args, unspent)
+        assert tuple(carried) == fresh
+        assert unspent == twosep.presliding_unspent(fresh[3], p.k)
+
+
 deflection = st.just(0.0) | finite(-0.05, 0.05) | finite(-1e-4, 1e-4)
 
 

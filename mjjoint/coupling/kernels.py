@@ -18,7 +18,7 @@ from ..physics.jit import kernel
 from ..physics.stribeck import static_friction, static_friction_slope, static_friction_step
 from ..physics.transmission import engaged, transmission_stiffness, transmission_torque
 from ..joint import STABILITY_BUDGET
-from ..physics.twosep import reversal_step, reverses, twosep_step
+from ..physics.twosep import presliding_unspent, reversal_step, reverses, twosep_step, twosep_step_from
 from ..physics.load import bearing_friction, bearing_step
 from .layout import (ANY_SITE, AT, FO, FOL, FOL2, FOT, FP, FPL, FRICTION, FRICTION_2SEP, FRICTION_STATIC, HYSTERESIS, LOAD,
                      OMEGA, QR, SITE_TERMS, ADVANCE_TERMS, SUB, TP, TRANSMISSION, WP, WPL, WSIGN, X, Z1, Z2)
@@ -290,11 +290,12 @@ def twosep_substeps(blk, z1, z2, omega, qr, wsign, fx, gd, om, wq, h, hj, n):
     hs = h / n
     hjs = hj / n
     w = wq
+    unspent = presliding_unspent(qr, blk[F.k])  # carried from substep to substep
     for _ in range(n):
         w1, _ = twosep_velocity(blk, z1, z2, omega, qr, wsign, fx + gd * (w - wq), gd, om, w, hs, hjs)
-        z1, z2, omega, qr, wsign = twosep_step(z1, z2, omega, qr, wsign, w1, hs, blk[F.fc], blk[F.fs], blk[F.vs],
-                                               blk[F.shape], blk[F.sigma], blk[F.k], blk[F.b], blk[F.asym],
-                                               blk[F.sigma_asym])
+        z1, z2, omega, qr, wsign, unspent = twosep_step_from(z1, z2, omega, qr, wsign, w1, hs, blk[F.fc], blk[F.fs],
+                                                             blk[F.vs], blk[F.shape], blk[F.sigma], blk[F.k],
+                                                             blk[F.b], blk[F.asym], blk[F.sigma_asym], unspent)
         w = w1
     return w, z1, z2, omega, qr, wsign
 

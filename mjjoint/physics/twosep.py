@@ -72,9 +72,29 @@ def lag_target(w, fc, fs, vs, shape, sigma, asym, sigma_asym):
     return smooth_sign(w, SIGN_WIDTH * vs) * level + slope * w, level + slope * abs(w)
 
 
+# Past K|q_r| = 40 the pre-sliding increment is below omega e^-40 = 4e-18 omega, under z1's
+# last bit: |q_r| only grows between reversals, so its exp() are skipped from there on.
+SATURATED = 40.0
+
+
+@kernel
+def presliding_unspent(qr, k):
+    """e^{-K|q_r|}, the pre-sliding spring's unspent share (Eq. 12), 0 once saturated."""
+    return math.exp(-k * abs(qr)) if k * abs(qr) < SATURATED else 0.0
+
+
 @kernel
 def presliding(z1, omega, qr, wsign, w, h, fc, k, asym):
     """Eqs. 12-13 over one step at velocity ``w``: (z1, dz1/dw, omega, qr, wsign) at its end."""
+    z1, slope, omega, qr, wsign, _ = presliding_from(z1, omega, qr, wsign, w, h, fc, k, asym,
+                                                     presliding_unspent(qr, k))
+    return z1, slope, omega, qr, wsign
+
+
+@kernel
+def presliding_from(z1, omega, qr, wsign, w, h, fc, k, asym, unspent):
+    """``presliding`` given ``unspent`` = ``presliding_unspent(qr, k)``, the last step's end value to
+    a caller that steps on (one exp a step instead of two); returns it at the step's end too."""
     sg = 1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0)
     if sg != 0.0 and sg != wsign:
         # Motion reversal: memorise the stiffness capacity (13) and restart q_r. At the
@@ -82,15 +102,15 @@ def presliding(z1, omega, qr, wsign, w, h, fc, k, asym):
         omega = abs(sg * (fc + asym * sg) - z1)
         qr = 0.0
         wsign = sg
+        unspent = 1.0
     qr_new = qr + w * h
-    # |q_r| only grows between reversals; past K|q_r| = 40 the increment is below
-    # omega e^-40 = 4e-18 omega, under z1's last bit, so the two exp() are skipped (per step).
     slope = 0.0
-    if k * abs(qr) < 40.0:
+    if k * abs(qr) < SATURATED:
         end = math.exp(-k * abs(qr_new))
-        z1 = z1 + sg * omega * (math.exp(-k * abs(qr)) - end)
+        z1 = z1 + sg * omega * (unspent - end)
         slope = omega * k * h * end
-    return z1, slope, omega, qr_new, wsign
+        unspent = end if k * abs(qr_new) < SATURATED else 0.0
+    return z1, slope, omega, qr_new, wsign, unspent
 
 
 @kernel
@@ -127,7 +147,16 @@ def reversal_step(a, kd, hj, z1, omega, qr, wsign, h, fc, k, asym):
 @kernel
 def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, asym, sigma_asym):
     """Advance the 2SEP states over one step at velocity ``w``; returns (z1, z2, omega, qr, wsign)."""
-    z1, _, omega, qr_new, wsign = presliding(z1, omega, qr, wsign, w, h, fc, k, asym)
+    z1, z2, omega, qr, wsign, _ = twosep_step_from(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b,
+                                                   asym, sigma_asym, presliding_unspent(qr, k))
+    return z1, z2, omega, qr, wsign
+
+
+@kernel
+def twosep_step_from(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, asym, sigma_asym, unspent):
+    """``twosep_step`` given ``presliding_unspent(qr, k)`` (``presliding_from``); returns it at the
+    step's end after the five states."""
+    z1, _, omega, qr_new, wsign, unspent = presliding_from(z1, omega, qr, wsign, w, h, fc, k, asym, unspent)
     s, s_mag = lag_target(w, fc, fs, vs, shape, sigma, asym, sigma_asym)
     # Eq. 14 is linear in z2 for frozen w and z1: z2' = d - lam z2, solved exactly over the step.
     # The gain (1 - e^-lam_h) h / lam_h from the one exp; its series where that loses digits, and
@@ -141,7 +170,7 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
     else:
         decay, gain = 1.0 - lam_h * (1.0 - 0.5 * lam_h), h * (1.0 - lam_h * (0.5 - lam_h / 6.0))
     z2 = z2 * decay + gain * (s - z1) / s_mag
-    return z1, z2, omega, qr_new, wsign
+    return z1, z2, omega, qr_new, wsign, unspent
 
 
 @dataclass(frozen=True)
