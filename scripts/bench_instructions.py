@@ -18,8 +18,10 @@ of a ratio compute the same motion and differ only in the joint physics.
 Instructions are counted by valgrind's callgrind, collecting only inside ``mj_step``
 (``--toggle-collect=mj_step``, callees such as the plugin's compute included); the script runs
 itself under valgrind (``--worker``) and cuts the counts per configuration with a dump at each
-call of ``mj_versionString``, a function the stepping never calls. The counts repeat exactly
-from run to run, unlike times on a shared machine. Wall time (this thread's CPU time, the same
+call of ``mj_versionString``, a function the stepping never calls. The counts repeat to within
+a few instructions a step from run to run, unlike times on a shared machine. The worker runs
+without ``OPENBLAS_CORETYPE``: valgrind's emulated CPU lacks AVX-512, which a forced Skylake-X
+OpenBLAS would execute. Wall time (this thread's CPU time, the same
 rollouts natively, best of ``--repeats`` interleaved) is printed beside them.
 
     python scripts/bench_instructions.py            # needs valgrind on PATH (apt-get install valgrind)
@@ -27,6 +29,7 @@ rollouts natively, best of ``--repeats`` interleaved) is printed beside them.
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import shutil
 import subprocess
@@ -139,7 +142,8 @@ def count_instructions(steps: int, segment: int, keep: Path | None) -> list[int]
         cmd = [valgrind, "--tool=callgrind", "--toggle-collect=mj_step", "--dump-before=mj_versionString",
                f"--callgrind-out-file={out / 'callgrind.out'}", sys.executable, __file__, "--worker",
                "--steps", str(steps), "--segment", str(segment)]
-        done = subprocess.run(cmd, capture_output=True, text=True)
+        env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+        done = subprocess.run(cmd, capture_output=True, text=True, env=env)
         if done.returncode != 0:
             sys.exit(f"callgrind run failed ({done.returncode}):\n{done.stderr[-3000:]}")
         parts = {}
