@@ -93,8 +93,9 @@ def presliding(z1, omega, qr, wsign, w, h, fc, k, asym):
 
 @kernel
 def presliding_from(z1, omega, qr, wsign, w, h, fc, k, asym, unspent):
-    """``presliding`` given ``unspent`` = ``presliding_unspent(qr, k)``, the last step's end value to
-    a caller that steps on (one exp a step instead of two); returns it at the step's end too."""
+    """``presliding`` given ``unspent`` = ``presliding_unspent(qr, k)``, which a caller that steps
+    on carries from each step's end to the next (one exp a step instead of two): the five values
+    and ``unspent`` at the step's end."""
     sg = 1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0)
     if sg != 0.0 and sg != wsign:
         # Motion reversal: memorise the stiffness capacity (13) and restart q_r. At the
