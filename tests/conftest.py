@@ -29,7 +29,26 @@ def _avx512_kernels() -> None:
         os.environ["OPENBLAS_CORETYPE"] = "SkylakeX"
 
 
+def _a_share_of_the_cores() -> None:
+    """Under pytest-xdist each worker runs on its own share of the cores, before numpy loads.
+
+    A fit's rollouts run one thread per core the process may use (``identify.windows``), and
+    OpenBLAS sizes its pool the same way: with every worker seeing every core, n workers run n
+    times as many threads as there are cores, and each rollout waits at its end for the thread
+    that was put aside. The suite's expectations hold at either thread count.
+    """
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    count = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0"))
+    if not worker.startswith("gw") or count < 2 or not hasattr(os, "sched_setaffinity"):
+        return
+    cores = sorted(os.sched_getaffinity(0))
+    index = int(worker[2:])
+    if len(cores) >= count and index < count:
+        os.sched_setaffinity(0, cores[index * len(cores) // count:(index + 1) * len(cores) // count])
+
+
 _avx512_kernels()
+_a_share_of_the_cores()
 
 import mujoco  # noqa: E402  (numpy loads with it: after the kernels are chosen)
 import pytest  # noqa: E402
@@ -57,9 +76,13 @@ _ROOT_LOG_KEY = pytest.StashKey[tuple[int, int] | None]()
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Files marked ``long`` run first: a worker takes a whole file (``--dist loadfile``), and a
-    long file started late runs on alone after the others are done."""
-    items.sort(key=lambda item: item.get_closest_marker("long") is None)
+    """Files marked ``long(minutes)`` run first, the longest first: a worker takes a whole file
+    (``--dist loadfile``, in collection order), and a long file started late runs on alone after
+    the others are done."""
+    def minutes(item: pytest.Item) -> float:
+        mark = item.get_closest_marker("long")
+        return -mark.args[0] if mark is not None else 0.0
+    items.sort(key=minutes)
 
 
 @pytest.fixture(autouse=True, scope="session")

@@ -12,6 +12,8 @@ from mjjoint.benchmark.cases import CONCEALED
 from mjjoint.benchmark.score import run_case
 from mjjoint.diagnosis.loop import DiagnoseOptions
 
+pytestmark = pytest.mark.long(1.5)
+
 SHORT = 8.0  # [s] of recording: enough windows for a held-out quarter, fast enough for CI
 # CI screens a fixed mix of candidates: the concealed one among confounders that act in the
 # same places (reversals, small deflection, lag); the full benchmark screens every effect.

@@ -9,6 +9,8 @@ import pytest
 from mjjoint import sim as sim_module
 from mjjoint.experiments.convergence import SHIPPED_STEP, Case, cases, measure, measure_arm3, rel_rms
 
+pytestmark = pytest.mark.long(1.5)
+
 CASES = {c.name: c for c in cases()}
 SLIDING = [name for name in CASES if name.startswith("free rotor") and name.endswith("1 Hz")]
 

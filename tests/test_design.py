@@ -27,6 +27,8 @@ from mjjoint.design.record import record
 from mjjoint.excitation import FromFile
 from mjjoint.recordings import write_recording
 
+pytestmark = pytest.mark.long(1)
+
 
 def test_every_family_keeps_the_torque_limit_by_construction():
     limits = Limits(max_torque=0.07, duration=3.0)

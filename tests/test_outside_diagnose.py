@@ -8,6 +8,8 @@ from mjjoint.benchmark.independent.cases import CASES
 from mjjoint.benchmark.independent.score import FAR, run_case
 from mjjoint.diagnosis.loop import DiagnoseOptions
 
+pytestmark = pytest.mark.long(3)
+
 
 def test_a_hysteretic_gear_of_the_independent_plant_is_named(tmp_path):
     """A Bouc-Wen gear outside the development set's range (elastic share 0.6-0.8, x_u 4-8 mrad),
