@@ -150,6 +150,31 @@ def test_an_effect_whose_term_carries_none_of_its_gain_is_a_stand_in(backlash_re
     assert stand_in(predictor, stalled, added, _step("backlash"), [], options, floor_cost, lines.append) == (None, None)
 
 
+def test_a_term_that_holds_the_optimum_its_fit_found_is_not_a_stand_in(monkeypatch):
+    """The README's route with a 0.5 mrad play: 2SEP passes the acceptance rule (held-out cost
+    0.1149 -> 0.0694) and, switched off at its fit, the model predicts at 0.0741, 6.4 % worse
+    only; but the model without it, refitted from there, ends at 0.1296, worse than before 2SEP:
+    the term is what holds the optimum its fit found, and it is not refused for that, first
+    effect or not. Where that refit keeps the gain (0.0700), it is."""
+    from mjjoint.diagnosis import revise as rv
+    monkeypatch.setattr(rv, "switched_off", lambda predictor, after, step: 0.0741)
+    monkeypatch.setattr(rv, "_robust_kept", lambda predictor, result, options: result)
+    # The acceptance rule as a 10 % gain alone.
+    monkeypatch.setattr(rv, "acceptance", lambda predictor, ref, cand, effect, options, floor_cost, max_p: (
+        1.0 - cand.cost_test / ref.cost_test, {"p": 0.01}, [] if cand.cost_test < 0.9 * ref.cost_test else ["gain"]))
+    before = SimpleNamespace(cost_test=0.1149)
+    after = SimpleNamespace(cost_test=0.0694, on_bound=[], structure=SimpleNamespace(
+        values={"dynamic_friction.k": 400.0, "dynamic_friction.b": 390.0}))
+    for refit_cost, refused in ((0.1296, False), (0.0700, True)):
+        monkeypatch.setattr(rv, "_refit_without", lambda *a, cost=refit_cost: SimpleNamespace(cost_test=cost))
+        for named in ([], [_step("coulomb_friction")]):
+            lines = []
+            refusal, _ = stand_in(_RESOLVING, before, after, _step("dynamic_friction"), named, DiagnoseOptions(),
+                                  1e-6, lines.append)
+            assert (refusal is not None) is refused, lines
+            assert ("its term holds that optimum" in lines[0]) is not refused, lines
+
+
 def test_an_effect_that_explains_less_than_a_refused_rival_at_its_site_is_a_stand_in(monkeypatch):
     """The out-of-regime boucwen_soft sequence: 2SEP refused with k and b on their bounds (held-out
     cost 0.000855 -> 0.000425), then a Stribeck bump passes at 0.000570. Both act on the motor near

@@ -13,8 +13,10 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   effect where every one of its own parameters ends on a bound (none of them an estimate of it);
   so is an effect, the first too, whose term, switched off at its own fit with every other
   parameter where that fit left them, loses less than the acceptance rule's relative or absolute
-  gain (its gain is the optimum its fit carried the other parameters to: a viscous asymmetry of
-  2.5 % "explaining" 75 % of the held-out cost); so is an effect, the first too, whose
+  gain while the model without it, refitted from there, keeps the gain (it fails the acceptance
+  rule against that refit: its gain is the optimum its fit carried the other parameters to, a
+  viscous asymmetry of 2.5 % "explaining" 75 % of the held-out cost; where the refit loses the
+  gain, the term is what holds that optimum, and the other tests decide); so is an effect, the first too, whose
   characteristic speed (the Stribeck velocity) is fitted below the speed the recording resolves
   (``unresolved_speeds``); the model without it, refitted from where its fit left the other
   parameters, replaces the current one where it predicts the held-out windows better (a term
@@ -142,7 +144,8 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
              ) -> tuple[Revision | None, FitResult | None]:
     """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): its term
     switched off at its own fit losing less than the acceptance rule's relative or absolute gain
-    (``switched_off``, ``loop.gain_shortfalls``; the first effect too), its own parameters on their
+    (``switched_off``, ``loop.gain_shortfalls``; the first effect too) while it fails that rule
+    against the model without it refitted from its values, its own parameters on their
     bounds (the first effect where every one of them is), a characteristic speed fitted below what
     the recording resolves (``unresolved_speeds``; the first effect too), a related effect already
     refused as a stand-in (one of ``refusals``) predicting the held-out windows better than it does,
@@ -159,17 +162,22 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
                         "located residual holds"), None
     off = switched_off(predictor, after, step)
     carried = off - after.cost_test
+    free = None
     if any(gain_shortfalls(off, after.cost_test, options, floor_cost)):
-        # The gain is where the new term's fit carried the other parameters, not the term: the
-        # model without it, refitted from there, keeps that gain without naming it.
+        # The gain may be where the new term's fit carried the other parameters, not the term:
+        # then the model without it, refitted from there, keeps that gain without naming it. Where
+        # that refit loses it instead, the term is what holds the optimum: the other tests decide.
         free = _robust_kept(predictor, _refit_without(predictor, after, step, options), options)
+        _, _, held = acceptance(predictor, free, after, step.effect, options, floor_cost, options.max_p)
         say(f"  {step.effect} switched off at its fit: held-out cost {off:.4g} (with it {after.cost_test:.4g}); "
-            f"the model without it refitted from its values: {free.cost_test:.4g}")
-        return Revision("stand-in", step.effect, off, after.cost_test,
-                        f"passed the acceptance rule, but at its own fit its term lowers the held-out cost by "
-                        f"{100 * carried / off:.1f} % only ({off:.4g} switched off, every other parameter where that "
-                        f"fit left them; {after.cost_test:.4g} with it): its gain is the optimum its fit carried the "
-                        "other parameters to"), free
+            f"the model without it refitted from its values: {free.cost_test:.4g}"
+            + ("" if held else f", against which {step.effect} passes the acceptance rule: its term holds that optimum"))
+        if held:
+            return Revision("stand-in", step.effect, off, after.cost_test,
+                            f"passed the acceptance rule, but at its own fit its term lowers the held-out cost by "
+                            f"{100 * carried / off:.1f} % only ({off:.4g} switched off, every other parameter where "
+                            f"that fit left them; {after.cost_test:.4g} with it): its gain is the optimum its fit "
+                            "carried the other parameters to"), free
     better = [r for r in refusals if related(r.effect, step.effect) and r.cost_after <= after.cost_test]
     if better:
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
@@ -187,7 +195,8 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
         # A term fitted to a bound is often fitted to none at all (a Stribeck ratio of 1, a delay
         # of 0): its gain is then the model's own, reached from another start, which the model
         # without it refitted from there keeps.
-        free = _robust_kept(predictor, _refit_without(predictor, after, step, options), options)
+        if free is None:
+            free = _robust_kept(predictor, _refit_without(predictor, after, step, options), options)
         say(f"  the model without {step.effect} refitted from its values: held-out cost {free.cost_test:.4g} "
             f"(before it {before.cost_test:.4g}, with it {after.cost_test:.4g})")
         values = after.structure.values
@@ -201,7 +210,8 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
         return None, None
     say(f"  {step.effect} acts where {', '.join(earlier)} does: its gain tested against the model without it "
         "refitted from its values, every parameter free")
-    free = _refit_without(predictor, after, step, options)
+    if free is None:
+        free = _refit_without(predictor, after, step, options)
     ref = _robust_kept(predictor, min(before, free, key=lambda r: r.cost_test), options)
     _, consistency, failed = acceptance(predictor, ref, after, step.effect, options, floor_cost, options.max_p)
     say(f"  held-out cost {ref.cost_test:.4g} without {step.effect} refitted, {after.cost_test:.4g} with it "
