@@ -122,35 +122,26 @@ def test_a_base_bent_by_the_rod_it_lacks_is_screened_again_free(tmp_path):
     _calibrated(diagnosis)
 
 
-def _named_within(diagnosis: dict, parameter: str, truth: float) -> None:
-    lo, hi = diagnosis["final_model"]["intervals_95"][parameter]
-    assert lo <= truth <= hi, (parameter, lo, hi, truth)
-    assert not [e for e in diagnosis["missing"] if EFFECTS[e].site == "sensor"], diagnosis["verdict"]
+# The route is not one recording: its multisine's phases drawn from another seed (about 9 minutes
+# on one core), and a wider play (about 10), where 2SEP is named because its term holds the fit
+# it found: switched off there it loses little, but the model refitted without it loses the gain
+# (``diagnosis.revise.stand_in``). Each: (the play [rad], the multisine's seed, names beside it).
+VARIANTS = {"other phases": (0.0003, 1, set()), "wider play": (0.0005, None, {"dynamic_friction"})}
 
 
 @pytest.mark.slow
-def test_the_route_with_other_multisine_phases_names_the_play_and_predicts_every_signal(tmp_path):
-    """The route is not one recording: its multisine's phases drawn from another seed, the
-    same play (about 9 minutes on one core)."""
-    diagnosis, share = _route(tmp_path, {"backlash = 0.0 ": "backlash = 0.0003"}, seed=1)
+@pytest.mark.parametrize("variant", list(VARIANTS))
+def test_a_variant_of_the_route_names_the_play_within_its_interval_and_predicts_every_signal(variant, tmp_path):
+    width, seed, beside = VARIANTS[variant]
+    diagnosis, share = _route(tmp_path, {"backlash = 0.0 ": f"backlash = {width}"}, seed=seed)
     assert share > VISIBLE, share
-    assert "backlash" in diagnosis["missing"], diagnosis["verdict"]
-    _named_within(diagnosis, "backlash.width", 0.0003)
+    assert {"backlash", *beside} <= set(diagnosis["missing"]), diagnosis["verdict"]
+    lo, hi = diagnosis["final_model"]["intervals_95"]["backlash.width"]
+    assert lo <= width <= hi, (lo, hi)
+    assert not [e for e in diagnosis["missing"] if EFFECTS[e].site == "sensor"], diagnosis["verdict"]
     assert not diagnosis["stand_ins"], diagnosis["stand_ins"]
     final = diagnosis["final_fit"]["nrmse_heldout"]
     assert all(v < 0.3 for v in final.values()), final
-    _calibrated(diagnosis)
-
-
-@pytest.mark.slow
-def test_a_wider_play_is_named_within_its_interval_and_what_remains_is_reported(tmp_path):
-    """A 0.5 mrad play on the route (about 7 minutes on one core): the play is named and its
-    interval holds the truth; what the final model still misses is reported, not called
-    explained."""
-    diagnosis, _ = _route(tmp_path, {"backlash = 0.0 ": "backlash = 0.0005"})
-    assert "backlash" in diagnosis["missing"], diagnosis["verdict"]
-    _named_within(diagnosis, "backlash.width", 0.0005)
-    assert not diagnosis["stand_ins"], diagnosis["stand_ins"]
     _calibrated(diagnosis)
 
 
