@@ -16,8 +16,8 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   gain while the model without it, refitted from there, keeps the gain (it fails the acceptance
   rule against that refit: its gain is the optimum its fit carried the other parameters to, a
   viscous asymmetry of 2.5 % "explaining" 75 % of the held-out cost; where the refit loses the
-  gain, the term is what holds that optimum, and the other tests decide); so is an effect, the first too, whose
-  characteristic speed (the Stribeck velocity) is fitted below the speed the recording resolves
+  gain, the term is what holds that optimum, and the other tests decide); so is an effect, the
+  first too, whose characteristic speed (the Stribeck velocity) is fitted below the speed the recording resolves
   (``unresolved_speeds``); the model without it, refitted from where its fit left the other
   parameters, replaces the current one where it predicts the held-out windows better (a term
   fitted to its bound is often fitted to none, its gain the model's own from another start). A
@@ -168,11 +168,12 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
         # then the model without it, refitted from there, keeps that gain without naming it. Where
         # that refit loses it instead, the term is what holds the optimum: the other tests decide.
         free = _robust_kept(predictor, _refit_without(predictor, after, step, options), options)
-        _, _, held = acceptance(predictor, free, after, step.effect, options, floor_cost, options.max_p)
+        refit_keeps = bool(acceptance(predictor, free, after, step.effect, options, floor_cost, options.max_p)[2])
         say(f"  {step.effect} switched off at its fit: held-out cost {off:.4g} (with it {after.cost_test:.4g}); "
             f"the model without it refitted from its values: {free.cost_test:.4g}"
-            + ("" if held else f", against which {step.effect} passes the acceptance rule: its term holds that optimum"))
-        if held:
+            + ("" if refit_keeps else f", against which {step.effect} passes the acceptance rule: its term holds "
+               "that optimum"))
+        if refit_keeps:
             return Revision("stand-in", step.effect, off, after.cost_test,
                             f"passed the acceptance rule, but at its own fit its term lowers the held-out cost by "
                             f"{100 * carried / off:.1f} % only ({off:.4g} switched off, every other parameter where "
