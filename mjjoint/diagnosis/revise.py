@@ -8,23 +8,22 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
 - **Stand-in guard**, for every effect accepted after the first: its gain is tested once more
   against the model without it refitted with more freedom (every parameter free, ``fit_iter``
   iterations, then the robust loss, kept if it predicts the held-out windows better); an effect
-  whose gain does not survive that, or whose own parameters end on their bounds, is a stand-in:
-  it is reported (``stand_in_effects``), not named, and not screened again; so is the first
-  effect where every one of its own parameters ends on a bound (none of them an estimate of it);
-  so is an effect, the first too, whose term, switched off at its own fit with every other
-  parameter where that fit left them, loses less than the acceptance rule's relative or absolute
-  gain while the model without it, refitted from there, keeps the gain (it fails the acceptance
-  rule against that refit: its gain is the optimum its fit carried the other parameters to, a
-  viscous asymmetry of 2.5 % "explaining" 75 % of the held-out cost; where the refit loses the
-  gain, the term is what holds that optimum, and the other tests decide); so is an effect, the
-  first too, whose characteristic speed (the Stribeck velocity) is fitted below the speed the recording resolves
+  whose gain does not survive that, or whose own parameters end on their bounds, is a stand-in: it
+  is reported (``stand_in_effects``), not named, and not screened again; so is the first effect
+  where every one of its own parameters ends on a bound (none of them an estimate of it); so is an
+  effect, the first too, whose term, switched off at its own fit with every other parameter where
+  that fit left them, loses less than the acceptance rule's relative or absolute gain while the
+  model without it, refitted from there, keeps the gain (it fails the acceptance rule against that
+  refit: its gain is the optimum its fit carried the other parameters to, a viscous asymmetry of 2.5
+  % "explaining" 75 % of the held-out cost; where the refit loses the gain, the term is what holds
+  that optimum, and the other tests decide); so is an effect, the first too, whose characteristic
+  speed (the Stribeck velocity) is fitted below the speed the recording resolves
   (``unresolved_speeds``); the model without it, refitted from where its fit left the other
-  parameters, replaces the current one where it predicts the held-out windows better (a term
-  fitted to its bound is often fitted to none, its gain the model's own from another start). A
-  generic form, the first effect too, is one where its fit cannot tell its size from none
-  (``resolved``). So is an effect related to one refused before that predicted the held-out
-  windows better than it does: it explains a part of what that stand-in did, and the physics
-  acting there is neither.
+  parameters, replaces the current one where it predicts the held-out windows better (a term fitted
+  to its bound is often fitted to none, its gain the model's own from another start). A generic
+  form, the first effect too, is one where its fit cannot tell its size from none (``resolved``). So
+  is an effect related to one refused before that predicted the held-out windows better than it
+  does: it explains a part of what that stand-in did, and the physics acting there is neither.
 - **Swap**: each named effect is replaced by each of its rivals (``rivals``: the effects acting
   at the same site under a shared residual condition, and the ones the step found
   indistinguishable), the rest refitted; the swap is kept when the swapped model passes the
@@ -212,8 +211,10 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     say(f"  {step.effect} acts where {', '.join(earlier)} does: its gain tested against the model without it "
         "refitted from its values, every parameter free")
     if free is None:
-        free = _refit_without(predictor, after, step, options)
-    ref = _robust_kept(predictor, min(before, free, key=lambda r: r.cost_test), options)
+        ref = _robust_kept(predictor, min(before, _refit_without(predictor, after, step, options),
+                                          key=lambda r: r.cost_test), options)
+    else:  # refitted and robust-kept by the switched-off test
+        ref = free if free.cost_test < before.cost_test else _robust_kept(predictor, before, options)
     _, consistency, failed = acceptance(predictor, ref, after, step.effect, options, floor_cost, options.max_p)
     say(f"  held-out cost {ref.cost_test:.4g} without {step.effect} refitted, {after.cost_test:.4g} with it "
         f"(p {consistency['p']:.3g})" + (f"; fails: {', '.join(failed)}" if failed else ""))
