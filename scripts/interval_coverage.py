@@ -1,50 +1,30 @@
 """Coverage of the fits' 95 % intervals, per effect, over simulated recordings.
 
 For each effect and seed: the case's truth (``benchmark.cases``: a concealed case's, or one drawn
-for the coverage alone, ``COVERAGE_ONLY``) records the lab
-programme in closed loop; the TRUE structure is fitted to it from the catalogue's initial values,
-as ``mjjoint fit`` fits (``--restarts``, its default: staged, restarted where it ends on a bound);
-each parameter's 95 % interval is checked against the truth. A parameter counts as identifiable
-in a fit when the fit does not call it poorly identifiable or on a bound (``FitResult.warnings``),
-and the fit explains the recording to its noise floor (``diagnosis.floor``): a fit stuck in a
-local minimum carries its miss in the parameters, and the diagnosis flags those intervals.
-Coverage is reported over identifiable fits; the rest are counted apart.
+for the coverage alone, ``COVERAGE_ONLY``) records the lab programme in closed loop; the TRUE
+structure is fitted to it from the catalogue's initial values, as ``mjjoint fit`` fits
+(``--restarts``, its default: staged, restarted where it ends on a bound); each parameter's 95 %
+interval is checked against the truth (``benchmark.coverage``). Coverage is reported over the
+fits where a parameter is identifiable; the rest are counted apart.
 
     python scripts/interval_coverage.py --seeds 6 --duration 10
 
-prints one row per effect and per parameter of the concealed effect, then the pooled coverage
+prints one row per effect and per parameter of the case's effect, then the pooled coverage
 of every parameter; docs/diagnosis.md ("Intervals") holds the table.
 """
 from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
-from pathlib import Path
 
 import numpy as np
 
-from mjjoint.benchmark.cases import GEAR_RATIO, TRUTHS, make_case
-from mjjoint.benchmark.score import write_case_recording
+from mjjoint.benchmark.cases import TRUTHS
+from mjjoint.benchmark.coverage import CHECKS, coverage_fit, covered
 from mjjoint.cli.fit import RESTARTS
-from mjjoint.diagnosis.floor import noise_floor
 from mjjoint.identify.effects import EFFECTS
-from mjjoint.identify.fit import WIDENED, check_intervals, fit
-from mjjoint.identify.structure import Structure
-from mjjoint.identify.windows import Measured, Predictor, WindowDesign
-from mjjoint.recordings import read_recording
 
 EFFECTS_SCORED = tuple(e for e in TRUTHS if e not in ("none", "gravity"))
-
-
-def covered(result, truth: Structure, explained: bool) -> dict[str, tuple[bool, bool]]:
-    """{parameter: (interval holds the truth, parameter identifiable in this fit)}."""
-    flagged = {w.split(" ")[0] for w in result.warnings if WIDENED not in w}  # a widened interval counts
-    out = {}
-    for name, (lo, hi) in result.intervals.items():
-        value = truth.values[name]
-        out[name] = (lo <= value <= hi, explained and name not in flagged)
-    return out
 
 
 def main(argv=None) -> int:
@@ -57,8 +37,8 @@ def main(argv=None) -> int:
                     help="the truth's timestep [s] (default the fitted model's, 0.5 ms); a finer one records "
                          "physics nearer its converged solution, which no model's step matches exactly")
     ap.add_argument("--effects", default=",".join(EFFECTS_SCORED))
-    ap.add_argument("--check", choices=("own", "all", "none"), default="own",
-                    help="whose intervals are checked against the model (fit.check_intervals): the concealed "
+    ap.add_argument("--check", choices=CHECKS, default="own",
+                    help="whose intervals are checked against the model (fit.check_intervals): the case's "
                          "effect's parameters (as the diagnosis checks the effects it names), every "
                          "parameter's, or none (the linearised intervals); with own or all, every interval is also "
                          "widened by its step bias and its twin bias, as the diagnosis and mjjoint fit widen them")
@@ -73,18 +53,8 @@ def main(argv=None) -> int:
         own = [p.name for p in EFFECTS[effect].params]
         rows: dict[str, list[tuple[bool, bool]]] = {}
         for seed in range(args.seeds):
-            case = make_case(effect, seed)
-            with tempfile.TemporaryDirectory() as tmp:
-                rec = read_recording(write_case_recording(case, Path(tmp), args.duration, args.truth_step),
-                                     gear_ratio=GEAR_RATIO)
-            predictor = Predictor(Measured.from_recording(rec, GEAR_RATIO), WindowDesign(seed=seed))
-            start = Structure.create(case.truth.effects, case.truth.nominal, GEAR_RATIO, settings=case.truth.settings)
-            result = fit(predictor, start, max_iter=args.fit_iter, restarts=args.restarts)
-            fitted = result.rollouts
-            if args.check != "none":
-                result = check_intervals(predictor, result, own if args.check == "own" else list(result.intervals),
-                                         biased=list(result.intervals))
-            explained = noise_floor(predictor, result.structure).explained(result.nrmse_test)
+            case, result, explained, fitted = coverage_fit(effect, seed, args.duration, args.truth_step,
+                                                           args.fit_iter, args.restarts, args.check)
             for name, c in covered(result, case.truth, explained).items():
                 rows.setdefault(name, []).append(c)
                 pooled.setdefault(name, []).append(c)

@@ -40,6 +40,14 @@ CONCEALED = {
 # way; the concealed benchmark's set stays CONCEALED.
 COVERAGE_ONLY = {
     "input_lag": ("input_lag.tau", lambda r: {"input_lag.tau": r.uniform(1e-3, 5e-3)}),
+    "stribeck_friction": ("stribeck_friction.ratio",
+                          lambda r: {"stribeck_friction.ratio": r.uniform(1.3, 2.0),
+                                     "stribeck_friction.vs": r.uniform(0.3, 1.5)}),
+    "nonlinear_stiffness": ("nonlinear_stiffness.k3", lambda r: {"nonlinear_stiffness.k3": 10 ** r.uniform(7.5, 8.5)}),
+    "load_dependent_friction": ("load_dependent_friction.gain",
+                                lambda r: {"load_dependent_friction.gain": r.uniform(0.1, 0.3)}),
+    "viscous_asymmetry": ("viscous_asymmetry.ratio",
+                          lambda r: {"viscous_asymmetry.ratio": r.choice([-1, 1]) * r.uniform(0.25, 0.5)}),
 }
 TRUTHS = {**CONCEALED, **COVERAGE_ONLY}
 
