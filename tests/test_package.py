@@ -35,6 +35,18 @@ def test_version(capsys):
     assert capsys.readouterr().out.strip() == f"mjjoint {mjjoint.__version__}"
 
 
+# Packages of seconds' import that simulating does not need, each with what first loads it.
+ON_FIRST_USE = {"dm_control": "mjjoint.control.load", "scipy.signal": "mjjoint.fit",
+                "scipy.stats": "mjjoint.diagnose"}
+
+
+def test_import_mjjoint_leaves_what_simulating_does_not_need_unloaded():
+    code = ["import sys, mjjoint",
+            *[f"assert {name!r} not in sys.modules, {name!r}" for name in ON_FIRST_USE],
+            *[f"assert {use} is not None and {name!r} in sys.modules, {name!r}" for name, use in ON_FIRST_USE.items()]]
+    subprocess.run([sys.executable, "-c", "; ".join(code)], check=True)
+
+
 @pytest.mark.slow
 def test_wheel_installed_elsewhere_simulates(tmp_path):
     """The built wheel, installed alone into a folder, runs ``mjjoint simulate`` from another one.

@@ -25,7 +25,6 @@ import re
 from collections.abc import Callable, Mapping
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from .errors import RecordingError, quote
 
@@ -140,6 +139,8 @@ def _derivative(args: list, t: np.ndarray | None, what: str) -> np.ndarray:
     if not (period > 0 and np.max(np.abs(steps - period)) <= DDT_JITTER * period):
         raise RecordingError(f"{what}: ddt needs evenly spaced samples (every period within {DDT_JITTER:.0%} of "
                              f"the median {period:.4g} s); differentiate after resampling instead")
+    from scipy.signal import savgol_filter  # seconds to import: not on the way to simulating
+
     return savgol_filter(x, int(window), DDT_ORDER, deriv=1, delta=period)
 
 
