@@ -180,7 +180,8 @@ def test_an_effect_that_explains_less_than_a_refused_rival_at_its_site_is_a_stan
     cost 0.000855 -> 0.000425), then a Stribeck bump passes at 0.000570. Both act on the motor near
     reversals; the bump explains less there than the refused stand-in did, so it is one too. A
     rival that predicts better than the refused one, or a refusal at another site, leaves the
-    guard's other tests to decide."""
+    guard's other tests to decide; so does a refusal from a pair whose other member was this very
+    effect (that model's cost was partly its own)."""
     _carries_its_gain(monkeypatch)
     refused = Revision("stand-in", "dynamic_friction", 0.000855, 0.000425, "parameters on their bounds")
     before = SimpleNamespace(cost_test=0.000855)
@@ -194,6 +195,9 @@ def test_an_effect_that_explains_less_than_a_refused_rival_at_its_site_is_a_stan
     assert guard(_bump(0.000400, vs=2.0), [refused]) == (None, None)
     elsewhere = Revision("stand-in", "backlash", 0.000855, 0.000425, "parameters on their bounds")
     assert guard(bump, [elsewhere]) == (None, None)
+    beside = Revision("stand-in", "dynamic_friction", 0.000855, 0.000425, "its term worth nothing at its fit",
+                      beside="stribeck_friction")
+    assert guard(bump, [beside]) == (None, None)
 
 
 # A recording that tells motion from rest from 0.2 rad/s on (``Measured.moving_speed``).
@@ -230,6 +234,33 @@ def test_a_stribeck_velocity_below_what_the_recording_resolves_is_a_stand_in(mon
         assert refusal.kind == "stand-in" and "stribeck_friction.vs = 0.12" in refusal.reason and kept is freer
     assert rv.unresolved_speeds(_RESOLVING, _bump(0.000476, vs=0.5), "stribeck_friction") == ""
     assert stand_in(_RESOLVING, before, _bump(0.000476, vs=0.5), _step("stribeck_friction"), [],
+                    DiagnoseOptions(), 1e-6, lambda line: None) == (None, None)
+
+
+def test_a_sensor_skew_far_below_a_sample_is_a_stand_in(monkeypatch):
+    """The out-of-regime maxwell_slip recording without its torque column (seed 5): a link encoder
+    skew of 16 us passes first at 1 kHz (held-out cost -79 %), where the plant reads both encoders
+    at one instant. A shift of a sixtieth of a sample reads in the deflection as a torque in
+    proportion to the link's speed: refused, first effect or not, and the model without it
+    refitted offered in its place; a skew of a sample or more, or an input's dead time of the
+    same size, is left to the guard's other tests."""
+    from mjjoint.diagnosis import revise as rv
+    _carries_its_gain(monkeypatch)
+    freer = SimpleNamespace(cost_test=0.0006)
+    monkeypatch.setattr(rv, "_refit_without", lambda *a: freer)
+    monkeypatch.setattr(rv, "_robust_kept", lambda predictor, result, options: result)
+    at_1khz = SimpleNamespace(m=SimpleNamespace(moving_speed=0.2, rate=1000.0))
+    before = SimpleNamespace(cost_test=0.000625)
+    shifted = lambda name, lag: SimpleNamespace(cost_test=0.00013, on_bound=[],  # noqa: E731
+                                                structure=SimpleNamespace(values={name: lag}))
+    for named in ([_step("transmission_hysteresis")], []):
+        refusal, kept = stand_in(at_1khz, before, shifted("sensor_skew.lag", 1.6e-5), _step("sensor_skew"), named,
+                                 DiagnoseOptions(), 1e-6, lambda line: None)
+        assert refusal.kind == "stand-in" and "sensor_skew.lag = 1.6e-05 s" in refusal.reason and kept is freer
+    assert rv.unresolved_shift(at_1khz, shifted("sensor_skew.lag", -1.6e-5), "sensor_skew") != ""
+    assert rv.unresolved_shift(at_1khz, shifted("sensor_skew.lag", 1.2e-3), "sensor_skew") == ""
+    assert rv.unresolved_shift(at_1khz, shifted("input_delay.delay", 1.6e-5), "input_delay") == ""
+    assert stand_in(at_1khz, before, shifted("sensor_skew.lag", 1.2e-3), _step("sensor_skew"), [],
                     DiagnoseOptions(), 1e-6, lambda line: None) == (None, None)
 
 
@@ -290,7 +321,7 @@ def test_revisions_are_reported_with_their_costs():
 
 def _without(kept: str, cost_test: float, values: dict) -> SimpleNamespace:
     """A refit of a pair's model without one member: ``kept`` is the member left in it."""
-    return SimpleNamespace(cost_test=cost_test, nrmse_test={"tau": 0.05},
+    return SimpleNamespace(cost_test=cost_test, nrmse_test={"tau": 0.05}, on_bound=[],
                            structure=SimpleNamespace(effects=("coulomb_friction", kept), values=values))
 
 
@@ -299,7 +330,10 @@ def test_a_pair_whose_members_each_re_explain_the_other_keeps_one(monkeypatch):
     (held-out cost -63 %), then each refused because the model without it, refitted, keeps the
     gain: together they held one effect, not none. The member left in the better of the two
     refits is kept, where that refit passes the acceptance rule against the model the pair
-    extends; if it fails, or only one member was refused, the guard's refusals stand."""
+    extends; if it fails, the guard's refusals stand. Where one member alone is refused, the
+    other is kept alone in the refit without it on the same rule: the out-of-regime backlash+lag
+    sequence (seed 6), an input delay and a current-loop lag named together, the delay's term worth
+    nothing at the pair's fit, would otherwise have dropped the lag that held the pair's gain."""
     from mjjoint.diagnosis import revise as rv
     verdict = {"failed": []}
     monkeypatch.setattr(rv, "acceptance", lambda predictor, ref, cand, effect, options, floor, max_p:
@@ -315,6 +349,15 @@ def test_a_pair_whose_members_each_re_explain_the_other_keeps_one(monkeypatch):
     assert step.effect == "dynamic_friction" and kept is no_bump and refusal is refusals[1]
     assert step.parameters == {"dynamic_friction.k": 4000.0} and step.gain == pytest.approx(1 - 0.0032 / 0.0085)
     assert "kept alone" in step.screen
+    step, kept, refusal = rv.one_of_pair(None, before, [(dyn, refusals[0], no_dyn), (bump, None, None)],
+                                         DiagnoseOptions(), 1e-6)
+    assert step.effect == "stribeck_friction" and kept is no_dyn and refusal is refusals[0]
+    assert step.parameters == {"stribeck_friction.vs": 0.6}
+    # nor one its refit leaves on a bound, nor a member refused itself on the other's refit alone
+    no_dyn.on_bound = ["stribeck_friction.vs"]
     assert rv.one_of_pair(None, before, [(dyn, refusals[0], no_dyn), (bump, None, None)], DiagnoseOptions(), 1e-6) is None
+    no_dyn.on_bound = []
+    assert rv.one_of_pair(None, before, [(dyn, refusals[0], no_dyn), (bump, refusals[1], None)],
+                          DiagnoseOptions(), 1e-6) is None
     verdict["failed"] = ["paired p = 0.3 > 0.05"]
     assert rv.one_of_pair(None, before, outcomes, DiagnoseOptions(), 1e-6) is None

@@ -528,14 +528,16 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                     refusal, freer = stand_in(predictor, current, refit, step, steps + [s for s in added if s is not step],
                                               options, floor_cost, say,
                                               [r for r in revisions if r.kind == "stand-in"])
-                outcomes.append((step, refusal, freer))
                 if refusal is not None:
                     say(f"  {step.effect} is not named: {refusal.reason}")
+                    if len(added) == 2:
+                        refusal = dataclasses.replace(refusal, beside=next(s.effect for s in added if s is not step))
+                outcomes.append((step, refusal, freer))
             refusals = [r for _, r, _ in outcomes if r is not None]
             alone = one_of_pair(predictor, current, outcomes, options, floor_cost)
             if alone is not None:
                 step, refit, refusal = alone
-                say(f"  each of the pair re-explains the other: {step.effect} kept alone (held-out cost "
+                say(f"  {refusal.effect} refused as a stand-in in the pair: {step.effect} kept alone (held-out cost "
                     f"-{100 * step.gain:.1f} %, paired p = {step.consistency['p']:.3g})")
                 added, refusals = [step], [refusal]
             if refusals:

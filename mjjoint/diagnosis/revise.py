@@ -18,7 +18,8 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   % "explaining" 75 % of the held-out cost; where the refit loses the gain, the term is what holds
   that optimum, and the other tests decide); so is an effect, the first too, whose characteristic
   speed (the Stribeck velocity) is fitted below the speed the recording resolves
-  (``unresolved_speeds``); the model without it, refitted from where its fit left the other
+  (``unresolved_speeds``), or a sensor's time shift below a tenth of a sample
+  (``unresolved_shift``); the model without it, refitted from where its fit left the other
   parameters, replaces the current one where it predicts the held-out windows better (a term fitted
   to its bound is often fitted to none, its gain the model's own from another start). A generic
   form, the first effect too, is one where its fit cannot tell its size from none (``resolved``). So
@@ -66,10 +67,11 @@ class Revision:
     cost_after: float         # ... and after (a stand-in: with it, against the freer reference)
     reason: str
     by: str = ""              # a swap: the rival that replaced it
+    beside: str = ""          # a stand-in refused in a pair: the other member, in the model it was judged in
 
     def as_dict(self) -> dict:
-        return {"kind": self.kind, "effect": self.effect, "by": self.by, "heldout_cost_before": self.cost_before,
-                "heldout_cost_after": self.cost_after, "reason": self.reason}
+        return {"kind": self.kind, "effect": self.effect, "by": self.by, "beside": self.beside,
+                "heldout_cost_before": self.cost_before, "heldout_cost_after": self.cost_after, "reason": self.reason}
 
     @property
     def line(self) -> str:
@@ -146,7 +148,8 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     (``switched_off``, ``loop.gain_shortfalls``; the first effect too) while it fails that rule
     against the model without it refitted from its values, its own parameters on their
     bounds (the first effect where every one of them is), a characteristic speed fitted below what
-    the recording resolves (``unresolved_speeds``; the first effect too), a related effect already
+    the recording resolves (``unresolved_speeds``) or a sensor's time shift below a tenth of a sample
+    (``unresolved_shift``; the first effect too), a related effect already
     refused as a stand-in (one of ``refusals``) predicting the held-out windows better than it does,
     or, when it is ``related`` to an effect already ``named``, its gain gone against the model
     without it refitted with more freedom, from where ``after`` left the other parameters (the added
@@ -178,20 +181,22 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
                             f"{100 * carried / off:.1f} % only ({off:.4g} switched off, every other parameter where "
                             f"that fit left them; {after.cost_test:.4g} with it): its gain is the optimum its fit "
                             "carried the other parameters to"), free
-    better = [r for r in refusals if related(r.effect, step.effect) and r.cost_after <= after.cost_test]
+    # (not a stand-in refused beside this very effect: that model's cost was partly this effect's)
+    better = [r for r in refusals if related(r.effect, step.effect) and r.cost_after <= after.cost_test
+              and r.beside != step.effect]
     if better:
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
                         f"explains less of the residual at its site than {better[0].effect}, refused as a stand-in, "
                         f"did (held-out cost {after.cost_test:.4g} with it, {better[0].cost_after:.4g} with "
                         f"{better[0].effect}): what acts there is neither"), None
-    unresolved_speed = unresolved_speeds(predictor, after, step.effect)
+    unresolved = unresolved_speeds(predictor, after, step.effect) or unresolved_shift(predictor, after, step.effect)
     own = [p.name for p in EFFECTS[step.effect].params]
     bound = [n for n in after.on_bound if n in own]
     if not named and len(bound) < len(own):  # the first effect: only where none of its own is an estimate
         bound = []
-    if not (named or unresolved_speed or bound):
+    if not (named or unresolved or bound):
         return None, None
-    if bound or unresolved_speed:
+    if bound or unresolved:
         # A term fitted to a bound is often fitted to none at all (a Stribeck ratio of 1, a delay
         # of 0): its gain is then the model's own, reached from another start, which the model
         # without it refitted from there keeps.
@@ -201,8 +206,7 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
             f"(before it {before.cost_test:.4g}, with it {after.cost_test:.4g})")
         values = after.structure.values
         why = (f"its parameters on their bounds ({', '.join(f'{n} = {values[n]:.4g}' for n in bound)})" if bound else
-               f"{unresolved_speed}, below the speed the recording resolves ({predictor.m.moving_speed:.3g}: "
-               "one noise band a sample), a law over speeds the recording cannot tell from rest")
+               unresolved)
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
                         f"passed the acceptance rule with {why}: a stand-in, not an estimate"), free
     earlier = [s.effect for s in named if related(s.effect, step.effect)]
@@ -227,24 +231,31 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
 
 def one_of_pair(predictor: Predictor, before: FitResult, outcomes, options: DiagnoseOptions, floor_cost: float
                 ) -> tuple[Step, FitResult, Revision] | None:
-    """A pair named together whose members are each refused (``stand_in``) as explaining what the
-    other does holds one effect, not none: the member kept by the better of the two refits without
-    the other, where that refit passes the acceptance rule against ``before``, the model the pair
-    extends. ``outcomes``: (step, refusal, refit without it) per member. Returns (that member's
-    step, its fit, the other's refusal) or None."""
+    """A pair named together of which a member is refused (``stand_in``) holds at most the other:
+    the member left in the refit without the refused one (where each is refused as explaining what
+    the other does, the better of the two refits), named alone where that refit passes the
+    acceptance rule against ``before``, the model the pair extends. Refusing both would drop the
+    physics the stand-in's gain was the other's. ``outcomes``: (step, refusal, refit without it)
+    per member; none is kept whose own parameters that refit left on their bounds. Returns (that
+    member's step, its fit, the other's refusal) or None."""
     kept = [(freer, keep, refusal) for (step, refusal, freer), (keep, _, _) in zip(outcomes, outcomes[::-1])
             if refusal is not None and freer is not None and keep.effect in freer.structure.effects
             and step.effect not in freer.structure.effects]
-    if len(kept) < 2:
+    refused = {step.effect for step, refusal, _ in outcomes if refusal is not None}
+    # a member refused itself is kept only where each re-explains the other (both refits found)
+    kept = [k for k in kept if k[1].effect not in refused or len(kept) == 2]
+    if len(outcomes) != 2 or not kept:
         return None
     freer, keep, refusal = min(kept, key=lambda k: k[0].cost_test)
+    if {p.name for p in EFFECTS[keep.effect].params} & set(freer.on_bound):
+        return None  # alone it would be a stand-in too (``stand_in``: its own parameters on their bounds)
     gain, consistency, failed = acceptance(predictor, before, freer, keep.effect, options, floor_cost, options.max_p)
     if failed:
         return None
     values = freer.structure.values
     step = dataclasses.replace(keep, parameters={n: values[n] for n in keep.parameters if n in values},
                                fit_after=freer.nrmse_test, gain=gain, consistency=consistency,
-                               screen=f"{keep.screen}; kept alone, {refusal.effect} re-explaining it")
+                               screen=f"{keep.screen}; kept alone, {refusal.effect} refused as a stand-in")
     return step, freer, refusal
 
 
@@ -256,12 +267,39 @@ def switched_off(predictor: Predictor, after: FitResult, step: Step) -> float:
 
 def unresolved_speeds(predictor: Predictor, result: FitResult, effect: str) -> str:
     """``effect``'s characteristic speeds (``Param.dim`` "speed": the Stribeck velocity) that
-    ``result`` fitted below ``Measured.moving_speed``, as "name = value", or "" where none is. A
-    curve over speeds the recording cannot tell from rest is shaped by the breakaway transients
-    alone, where the pre-sliding physics acts: it stands in for that, whatever it gains."""
+    ``result`` fitted below ``Measured.moving_speed``, as "name = value, below the speed ...", or
+    "" where none is. A curve over speeds the recording cannot tell from rest is shaped by the
+    breakaway transients alone, where the pre-sliding physics acts: it stands in for that,
+    whatever it gains."""
     slow = [(p.name, result.structure.values[p.name]) for p in EFFECTS[effect].params
             if p.dim == "speed" and result.structure.values[p.name] < predictor.m.moving_speed]
-    return ", ".join(f"{n} = {v:.3g}" for n, v in slow)
+    if not slow:
+        return ""
+    return (", ".join(f"{n} = {v:.3g}" for n, v in slow) + f", below the speed the recording resolves "
+            f"({predictor.m.moving_speed:.3g}: one noise band a sample), a law over speeds the recording cannot "
+            "tell from rest")
+
+
+# A sensor's time shift below this share of the sample period is finer than the clock the
+# recording states its samples on.
+SHIFT_RESOLUTION = 0.1
+
+
+def unresolved_shift(predictor: Predictor, result: FitResult, effect: str) -> str:
+    """A sensor's time shift (``Effect.plot`` "time_shift" at the sensor site: the link encoder's
+    skew) that ``result`` fitted below ``SHIFT_RESOLUTION`` sample periods, in words, or "". A
+    skew between two encoders is a latching offset of the controller's cycle; one far below a
+    sample is finer than the recording's clock, and in the deflection it reads as a torque in
+    proportion to the link's speed, which dissipation anywhere in the gear and the link gives (the
+    skew's ``stand_ins``): it stands in for that physics."""
+    e = EFFECTS[effect]
+    if e.site != "sensor" or e.plot != "time_shift":
+        return ""
+    period = 1.0 / predictor.m.rate
+    fine = [(p.name, result.structure.values[p.name]) for p in e.params
+            if abs(result.structure.values[p.name]) < SHIFT_RESOLUTION * period]
+    return ", ".join(f"{n} = {v:.3g} s" for n, v in fine) + (
+        f", below {SHIFT_RESOLUTION:g} of the sample period ({period:.3g} s), finer than the recording's clock" if fine else "")
 
 
 def _refit_without(predictor: Predictor, after: FitResult, step: Step, options: DiagnoseOptions) -> FitResult:
