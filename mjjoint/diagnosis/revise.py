@@ -238,13 +238,15 @@ def one_of_pair(predictor: Predictor, before: FitResult, outcomes, options: Diag
     physics the stand-in's gain was the other's. ``outcomes``: (step, refusal, refit without it)
     per member; none is kept whose own parameters that refit left on their bounds. Returns (that
     member's step, its fit, the other's refusal) or None."""
+    if len(outcomes) != 2:
+        return None
     kept = [(freer, keep, refusal) for (step, refusal, freer), (keep, _, _) in zip(outcomes, outcomes[::-1])
             if refusal is not None and freer is not None and keep.effect in freer.structure.effects
             and step.effect not in freer.structure.effects]
     refused = {step.effect for step, refusal, _ in outcomes if refusal is not None}
     # a member refused itself is kept only where each re-explains the other (both refits found)
     kept = [k for k in kept if k[1].effect not in refused or len(kept) == 2]
-    if len(outcomes) != 2 or not kept:
+    if not kept:
         return None
     freer, keep, refusal = min(kept, key=lambda k: k[0].cost_test)
     if {p.name for p in EFFECTS[keep.effect].params} & set(freer.on_bound):
