@@ -190,10 +190,9 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
                         f"did (held-out cost {after.cost_test:.4g} with it, {better[0].cost_after:.4g} with "
                         f"{better[0].effect}): what acts there is neither"), None
     unresolved = unresolved_speeds(predictor, after, step.effect) or unresolved_shift(predictor, after, step.effect)
-    own = [p.name for p in EFFECTS[step.effect].params]
-    bound = [n for n in after.on_bound if n in own]
-    if not named and len(bound) < len(own):  # the first effect: only where none of its own is an estimate
-        bound = []
+    bound = own_on_bound(after, step.effect)
+    if not named and len(bound) < len(EFFECTS[step.effect].params):
+        bound = []  # the first effect: only where none of its own is an estimate
     if not (named or unresolved or bound):
         return None, None
     if bound or unresolved:
@@ -249,7 +248,7 @@ def one_of_pair(predictor: Predictor, before: FitResult, outcomes, options: Diag
     if not kept:
         return None
     freer, keep, refusal = min(kept, key=lambda k: k[0].cost_test)
-    if {p.name for p in EFFECTS[keep.effect].params} & set(freer.on_bound):
+    if own_on_bound(freer, keep.effect):
         return None  # alone it would be a stand-in too (``stand_in``: its own parameters on their bounds)
     gain, consistency, failed = acceptance(predictor, before, freer, keep.effect, options, floor_cost, options.max_p)
     if failed:
@@ -259,6 +258,12 @@ def one_of_pair(predictor: Predictor, before: FitResult, outcomes, options: Diag
                                fit_after=freer.nrmse_test, gain=gain, consistency=consistency,
                                screen=f"{keep.screen}; kept alone, {refusal.effect} refused as a stand-in")
     return step, freer, refusal
+
+
+def own_on_bound(result: FitResult, effect: str) -> list[str]:
+    """``effect``'s own parameters that ``result`` left on a bound."""
+    own = {p.name for p in EFFECTS[effect].params}
+    return [n for n in result.on_bound if n in own]
 
 
 def switched_off(predictor: Predictor, after: FitResult, step: Step) -> float:
@@ -300,8 +305,10 @@ def unresolved_shift(predictor: Predictor, result: FitResult, effect: str) -> st
     period = 1.0 / predictor.m.rate
     fine = [(p.name, result.structure.values[p.name]) for p in e.params
             if abs(result.structure.values[p.name]) < SHIFT_RESOLUTION * period]
-    return ", ".join(f"{n} = {v:.3g} s" for n, v in fine) + (
-        f", below {SHIFT_RESOLUTION:g} of the sample period ({period:.3g} s), finer than the recording's clock" if fine else "")
+    if not fine:
+        return ""
+    return (", ".join(f"{n} = {v:.3g} s" for n, v in fine) + f", below {SHIFT_RESOLUTION:g} of the sample period "
+            f"({period:.3g} s), finer than the recording's clock")
 
 
 def _refit_without(predictor: Predictor, after: FitResult, step: Step, options: DiagnoseOptions) -> FitResult:
