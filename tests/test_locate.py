@@ -153,10 +153,43 @@ def test_periodic_in_q_finds_a_random_harmonic(seed):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("longer", [True, False], ids=["longer than a revolution", "whole cycles per revolution"])
+def test_a_friction_level_periodic_in_q_is_located_at_its_real_period(seed, longer):
+    """A friction level 1 + A cos(k q + phi) shows in a torque residual as sign(qd) A cos(k q +
+    phi): located as such, at its real k where the period is longer than a revolution, at its
+    whole k where shorter (as the periodic condition), which the plain periodic condition, blind
+    to the sign that flips with each reversal, explains far less of."""
+    rng = np.random.default_rng(200 + seed)
+    ex = experiment(rng)
+    k = rng.uniform(0.2, 0.9) if longer else float(rng.integers(1, 9))
+    a = 10 ** rng.uniform(-2, 1)
+    r = a * np.sign(ex.qd) * np.cos(k * ex.q + rng.uniform(0, 2 * np.pi)) + 0.3 * a * rng.standard_normal(ex.t.size)
+    scores = by_name(scores_of(ex, r))
+    found = scores["friction_periodic_q"]
+    assert found.significant and found.score > 0.5
+    assert found.params["k_real"] == pytest.approx(k, rel=0.02)
+    assert f"a friction level periodic in q at {found.params['k']:g} cycles per revolution" in found.description
+    assert scores["periodic_q"].score < 0.5 * found.score
+
+
+def test_the_friction_level_s_scan_reaches_two_periods_over_the_span():
+    """The longest period scanned repeats twice over q's recorded span, and none beyond ten
+    revolutions: a period the recording cannot show twice is not proposed."""
+    from mjjoint.diagnosis.locate import MIN_CYCLES, PERIODS_IN_SPAN
+    ex = experiment(np.random.default_rng(7))
+    span = np.ptp(ex.conditions["q"])
+    k = PERIODS_IN_SPAN * 2 * np.pi / span * 0.6      # a period the span holds 1.2 times
+    r = np.sign(ex.qd) * np.cos(k * ex.q)
+    found = by_name(scores_of(ex, r))["friction_periodic_q"]
+    assert found.params["k_real"] >= max(MIN_CYCLES, PERIODS_IN_SPAN * 2 * np.pi / span) - 1e-12
+
+
+@pytest.mark.parametrize("seed", SEEDS)
 def test_harmonic_scores_equal_the_projection_on_each_harmonic_s_own_basis(seed):
     """The periodic conditions' scan, harmonics stepped by angle addition and each pair
-    orthonormalised directly, against the plain reference: sin and cos evaluated at every k,
-    centred, an SVD basis, the projection of every column. Whole and real k, the unwrapped
+    orthonormalised directly, against the plain reference: sin and cos evaluated at every k (and
+    signed by the motion, as the friction level's), centred, an SVD basis, the projection of every
+    column. Whole and real k, the unwrapped
     motor angle and a link barely moving (its low harmonics nearly one direction), and an
     angle at rest (no basis: nothing explained)."""
     from mjjoint.diagnosis.locate import _centered_basis, _explained, harmonic_scores
@@ -167,11 +200,14 @@ def test_harmonic_scores_equal_the_projection_on_each_harmonic_s_own_basis(seed)
     for angle, start, step, count, rtol in ((ex.q, 1.0, 1.0, 40, 1e-9), (ex.q, 6.5, 0.01, 101, 1e-9),
                                             (1e-4 * ex.theta, 2.0, 1.0, 5, 1e-5),
                                             (np.zeros_like(ex.q), 1.0, 1.0, 3, 0.0)):
-        fast = harmonic_scores(angle, start, step, count, R)
-        ref = np.stack([_explained(_centered_basis(np.column_stack([np.sin(k * angle), np.cos(k * angle)])), R)
-                        if np.ptp(angle) > 0 else np.zeros(R.shape[1])
-                        for k in start + step * np.arange(count)])
-        np.testing.assert_allclose(fast, ref, rtol=rtol, atol=1e-14)
+        for sign in (None, np.sign(ex.qd)):
+            fast = harmonic_scores(angle, start, step, count, R, sign)
+            w = np.ones_like(angle) if sign is None else sign
+            ref = np.stack([_explained(_centered_basis(w[:, None] * np.column_stack([np.sin(k * angle),
+                                                                                     np.cos(k * angle)])), R)
+                            if np.ptp(angle) > 0 or sign is not None else np.zeros(R.shape[1])
+                            for k in start + step * np.arange(count)])
+            np.testing.assert_allclose(fast, ref, rtol=rtol, atol=1e-14)
 
 
 @pytest.mark.parametrize("seed", SEEDS)

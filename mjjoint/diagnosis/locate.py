@@ -45,6 +45,8 @@ from .window_median import window_medians
 REVERSAL_WINDOW_S = 0.030   # [s]: stick-slip and backlash transients last tens of ms
 SMALL_DELTA_QUANTILE = 0.2  # "small |delta|" = the 20 % of samples closest to zero deflection
 MAX_HARMONIC = 40           # cycles per motor revolution searched for position-periodic effects
+MIN_CYCLES = 0.1            # the longest period searched: ten motor revolutions (a friction level's)
+PERIODS_IN_SPAN = 2         # a period searched repeats at least this often over the angle's recorded span
 PERIOD_STEPS = 101          # real periods tried within half a cycle of the best whole one
 STRIBECK_SPEEDS = (0.02, 0.05, 0.1, 0.2, 0.35)  # bump widths v, as fractions of the 95th-pct |qd|
 RESONANCE_BAND = 0.1        # relative half-width of the band a resonance's power is counted in
@@ -219,17 +221,21 @@ def _pair_basis(a: np.ndarray, b: np.ndarray) -> list[np.ndarray]:
     return [first] + ([b / norm] if norm > 1e-9 * scale else [])
 
 
-def harmonic_scores(angle: np.ndarray, start: float, step: float, count: int, R: np.ndarray) -> np.ndarray:
+def harmonic_scores(angle: np.ndarray, start: float, step: float, count: int, R: np.ndarray,
+                    sign: np.ndarray | None = None) -> np.ndarray:
     """``_explained(_centered_basis([sin(k angle), cos(k angle)]), R)`` for k = start + j step,
-    j < count, one row per k. The harmonics are stepped by angle addition and the centred pair
-    orthonormalised directly (``_pair_basis``): a few passes over the record per harmonic, where
-    a sine, a cosine and an SVD of the n x 2 regressors cost tens of them."""
+    j < count, one row per k; with ``sign`` (+-1 per sample) the regressors are ``sign`` times
+    them: a level periodic in the angle that acts with the sign of a motion. The harmonics are
+    stepped by angle addition and the centred pair orthonormalised directly (``_pair_basis``): a
+    few passes over the record per harmonic, where a sine, a cosine and an SVD of the n x 2
+    regressors cost tens of them."""
     sin, cos = np.sin(start * angle), np.cos(start * angle)
     sin_step, cos_step = np.sin(step * angle), np.cos(step * angle)
     energy = np.sum(R**2, axis=0)
     out = np.zeros((count, R.shape[1]))
     for j in range(count):
-        basis = _pair_basis(sin - sin.mean(), cos - cos.mean())
+        a, b = (sin, cos) if sign is None else (sign * sin, sign * cos)
+        basis = _pair_basis(a - a.mean(), b - b.mean())
         if basis:
             out[j] = sum((u @ R) ** 2 for u in basis) / energy
         sin, cos = sin * cos_step + cos * sin_step, cos * cos_step - sin * sin_step
@@ -253,6 +259,44 @@ def _periodic(name: str, coordinate: str, angle: np.ndarray, first: int = 1) -> 
     return _Condition(
         name, evaluate,
         lambda s, p: f"periodic in {coordinate} at {p['k']} cycles per revolution ({_explains(s)})",
+        refine=refine,
+    )
+
+
+def _friction_periodic(q: np.ndarray, qd: np.ndarray) -> _Condition:
+    """A friction level periodic in the motor angle, sign(qd) [sin(k q), cos(k q)]: seen in a
+    residual of the torque or the deflection, which such a level moves with the sign of the
+    motion, and not by ``_periodic`` (its sign flips with every reversal). k is scanned from the
+    longest period that repeats PERIODS_IN_SPAN times over q's recorded span (at least
+    MIN_CYCLES) in steps of a quarter cycle over that span up to one cycle per revolution, then
+    at whole cycles to MAX_HARMONIC; the best real k is refined about the best scanned one."""
+    sign = np.sign(qd)
+    span = float(np.ptp(q)) if q.size else 0.0
+    fine = math.pi / (2.0 * span) if span > 0 else 1.0   # a quarter cycle over the span
+    first = max(MIN_CYCLES, PERIODS_IN_SPAN * 2.0 * math.pi / span) if span > 0 else 1.0
+    below = max(0, int(math.ceil((1.0 - first) / fine)))
+
+    def scan(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ks = np.concatenate([first + fine * np.arange(below), np.arange(1.0, MAX_HARMONIC + 1)])
+        scores = np.concatenate([harmonic_scores(q, first, fine, below, R, sign),
+                                 harmonic_scores(q, 1.0, 1.0, MAX_HARMONIC, R, sign)])
+        return ks, scores
+
+    def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        ks, scores = scan(R)
+        return scores.max(axis=0), {"k": round(float(ks[np.argmax(scores[:, 0])]), 3)}
+
+    def refine(r: np.ndarray, params: dict[str, float]) -> dict[str, float]:
+        k = params["k"]
+        half = 0.5 if k >= 1.0 else fine
+        grid = np.linspace(max(k - half, first), k + half, PERIOD_STEPS)
+        scores = harmonic_scores(q, grid[0], (grid[-1] - grid[0]) / (PERIOD_STEPS - 1), PERIOD_STEPS,
+                                 r[:, None], sign)
+        return {"k_real": round(float(grid[np.argmax(scores[:, 0])]), 3)}
+
+    return _Condition(
+        "friction_periodic_q", evaluate,
+        lambda s, p: f"a friction level periodic in q at {p['k']:g} cycles per revolution ({_explains(s)})",
         refine=refine,
     )
 
@@ -440,6 +484,8 @@ def _conditions(
         out.append(_regression("coulomb", np.sign(qd), "follows sign(qd), Coulomb-like"))
         out.append(_regression("viscous", qd, "proportional to qd, viscous-like"))
         out.append(_stribeck(qd))
+        if "q" in c:
+            out.append(_friction_periodic(c["q"], qd))
     if "delta_d" in c:
         out.append(_hysteresis(c["delta_d"]))
     if dt is not None and measured is not None:
