@@ -9,8 +9,9 @@ residual) the condition accounts for, in [0, 1]:
 - concentration conditions (near velocity reversals, small |delta|): (E - T) / (1 - T), where
   E is the residual energy share inside the condition's samples and T their time share; 0 when
   the residual is spread evenly, 1 when all of it sits there;
-- regressions (sin/cos theta, harmonics of q, friction shapes, acceleration, delta): the
-  fraction of residual variance explained by a least-squares fit on the regressors;
+- regressions (sin/cos theta, harmonics of q, friction shapes and a friction level periodic
+  in q, acceleration, delta): the fraction of residual variance explained by a least-squares
+  fit on the regressors;
 - resonance: the residual power share in a +-10 % band around a spectral peak, minus the larger
   of what the measured signal's spectrum puts there (motion-shaped errors are no resonance) and
   twice the residual's own local background (coloured noise is no resonance either);

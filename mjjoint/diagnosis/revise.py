@@ -18,8 +18,9 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   % "explaining" 75 % of the held-out cost; where the refit loses the gain, the term is what holds
   that optimum, and the other tests decide); so is an effect, the first too, whose characteristic
   speed (the Stribeck velocity) is fitted below the speed the recording resolves
-  (``unresolved_speeds``), or a sensor's time shift below a tenth of a sample
-  (``unresolved_shift``); the model without it, refitted from where its fit left the other
+  (``unresolved_speeds``), a sensor's time shift below a tenth of a sample
+  (``unresolved_shift``), or a mode above the Nyquist frequency (``unresolved_mode``: a flexible
+  rod's, which the recording cannot show); the model without it, refitted from where its fit left the other
   parameters, replaces the current one where it predicts the held-out windows better (a term fitted
   to its bound is often fitted to none, its gain the model's own from another start). A generic
   form, the first effect too, is one where its fit cannot tell its size from none (``resolved``). So
@@ -148,8 +149,9 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     (``switched_off``, ``loop.gain_shortfalls``; the first effect too) while it fails that rule
     against the model without it refitted from its values, its own parameters on their
     bounds (the first effect where every one of them is), a characteristic speed fitted below what
-    the recording resolves (``unresolved_speeds``) or a sensor's time shift below a tenth of a sample
-    (``unresolved_shift``; the first effect too), a related effect already
+    the recording resolves (``unresolved_speeds``), a sensor's time shift below a tenth of a sample
+    (``unresolved_shift``) or a mode above the Nyquist frequency (``unresolved_mode``; these three
+    the first effect too), a related effect already
     refused as a stand-in (one of ``refusals``) predicting the held-out windows better than it does,
     or, when it is ``related`` to an effect already ``named``, its gain gone against the model
     without it refitted with more freedom, from where ``after`` left the other parameters (the added
@@ -189,7 +191,8 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
                         f"explains less of the residual at its site than {better[0].effect}, refused as a stand-in, "
                         f"did (held-out cost {after.cost_test:.4g} with it, {better[0].cost_after:.4g} with "
                         f"{better[0].effect}): what acts there is neither"), None
-    unresolved = unresolved_speeds(predictor, after, step.effect) or unresolved_shift(predictor, after, step.effect)
+    unresolved = (unresolved_speeds(predictor, after, step.effect) or unresolved_shift(predictor, after, step.effect)
+                  or unresolved_mode(predictor, after, step.effect))
     bound = own_on_bound(after, step.effect)
     if not named and len(bound) < len(EFFECTS[step.effect].params):
         bound = []  # the first effect: only where none of its own is an estimate
@@ -309,6 +312,19 @@ def unresolved_shift(predictor: Predictor, result: FitResult, effect: str) -> st
         return ""
     return (", ".join(f"{n} = {v:.3g} s" for n, v in fine) + f", below {SHIFT_RESOLUTION:g} of the sample period "
             f"({period:.3g} s), finer than the recording's clock")
+
+
+def unresolved_mode(predictor: Predictor, result: FitResult, effect: str) -> str:
+    """The mode ``effect`` adds (``Effect.mode_hz``: a flexible rod's) where ``result`` fitted it
+    above the Nyquist frequency, in words, or "". The recording cannot show such a mode; what
+    the term still does below it (a little compliance, a damper on the link) is what the gear's
+    spring and damper hold or dissipation elsewhere gives (the effect's ``stand_ins``): it
+    stands in for that physics."""
+    mode = EFFECTS[effect].mode_hz
+    if mode is None or not mode(result.structure) > predictor.m.rate / 2.0:
+        return ""
+    return (f"its mode at {mode(result.structure):.3g} Hz, above the recording's Nyquist frequency "
+            f"({predictor.m.rate / 2.0:.3g} Hz): a mode the recording cannot show")
 
 
 def _refit_without(predictor: Predictor, after: FitResult, step: Step, options: DiagnoseOptions) -> FitResult:

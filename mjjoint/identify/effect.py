@@ -110,6 +110,9 @@ class Effect:
     # Screened only where the options name it (``--candidates``): a form the data seldom tell
     # from a richer rival, whose parsimony would otherwise displace it.
     on_request: bool = False
+    # (structure) -> the frequency [Hz] of the mode the effect adds (a flexible rod's first mode
+    # with the hub held), for effects whose evidence is a resonance; None for the others.
+    mode_hz: Callable[[Any], float] | None = None
 
     def __post_init__(self) -> None:
         if self.site not in SITES:

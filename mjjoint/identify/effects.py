@@ -215,16 +215,26 @@ def _read_flexibility(model: Model) -> dict[str, float] | None:
 RAYLEIGH_ROD_SHARE = 33.0 / 140.0
 
 
-def _flexibility_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
-    """Started where the rod's first mode with the hub held (a cantilever with its tip mass and
-    Rayleigh's share of the rod's, k = 3 EI / L^3) lies at the resonance the residual locates;
-    from the catalogue's EI where none is located."""
-    freqs = [c["params"]["frequency_hz"] for c in conds if c["name"] == "resonance" and c["significant"]]
+def _rod_stiffness_per_hz2(structure) -> float:
+    """EI [N m^2] over the squared first mode [Hz^2] of the rod with the hub held: a cantilever
+    with its tip mass and Rayleigh's share of the rod's, k = 3 EI / L^3."""
     arm = structure.nominal
+    mass = structure.values.get("mass.tip", arm.tip_mass) + RAYLEIGH_ROD_SHARE * arm.rod_mass
+    return mass * (2 * math.pi) ** 2 * arm.rod_length ** 3 / 3
+
+
+def _rod_mode_hz(structure) -> float:
+    """The rod's first mode [Hz] with the hub held (``_rod_stiffness_per_hz2``)."""
+    return math.sqrt(structure.values["link_flexibility.ei"] / _rod_stiffness_per_hz2(structure))
+
+
+def _flexibility_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
+    """Started where the rod's first mode with the hub held lies at the resonance the residual
+    locates (``_rod_stiffness_per_hz2``); from the catalogue's EI where none is located."""
+    freqs = [c["params"]["frequency_hz"] for c in conds if c["name"] == "resonance" and c["significant"]]
     if not freqs:
         return [({}, {})]
-    mass = structure.values.get("mass.tip", arm.tip_mass) + RAYLEIGH_ROD_SHARE * arm.rod_mass
-    return [({"link_flexibility.ei": mass * (2 * math.pi * freqs[0]) ** 2 * arm.rod_length ** 3 / 3}, {})]
+    return [({"link_flexibility.ei": _rod_stiffness_per_hz2(structure) * freqs[0] ** 2}, {})]
 
 
 def _friction_read(values, present=lambda f: True, coulomb: bool = True):
@@ -362,7 +372,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
             Param("link_flexibility.beta", ROD_BETA, 1e-7, 1e-2, unit="s", lo_physical=True)),
            _flexibility, site="link",
            evidence=("resonance",), plot="spectrum", stand_ins=("linear_stiffness", "transmission_damping"),
-           variants=_flexibility_variants, read=_read_flexibility, step_resolved=False),
+           variants=_flexibility_variants, read=_read_flexibility, step_resolved=False, mode_hz=_rod_mode_hz),
     Effect("input_delay", "dead time between commanded and applied motor torque",
            (Param("input_delay.delay", 1e-3, 0.0, 0.01, log=False, unit="s"),),
            lambda m, v: _arm(m, input_delay=v["input_delay.delay"]),
