@@ -20,9 +20,9 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   speed (the Stribeck velocity) is fitted below the speed the recording resolves
   (``unresolved_speeds``), a sensor's time shift below a tenth of a sample
   (``unresolved_shift``), or a mode above the Nyquist frequency (``unresolved_mode``: a flexible
-  rod's, which the recording cannot show); the model without it, refitted from where its fit left the other
-  parameters, replaces the current one where it predicts the held-out windows better (a term fitted
-  to its bound is often fitted to none, its gain the model's own from another start). A generic
+  rod's, which the recording cannot show); the model without it, refitted from where its fit left
+  the other parameters, replaces the current one where it predicts the held-out windows better (a
+  term fitted to its bound is often fitted to none, its gain the model's own from another start). A generic
   form, the first effect too, is one where its fit cannot tell its size from none (``resolved``). So
   is an effect related to one refused before that predicted the held-out windows better than it
   does: it explains a part of what that stand-in did, and the physics acting there is neither.
