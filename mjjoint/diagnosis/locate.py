@@ -243,6 +243,14 @@ def harmonic_scores(angle: np.ndarray, start: float, step: float, count: int, R:
     return out
 
 
+def _real_k(angle: np.ndarray, r: np.ndarray, lo: float, hi: float, sign: np.ndarray | None = None) -> float:
+    """The k in [lo, hi] (PERIOD_STEPS of them) whose harmonic of ``angle`` explains the most of
+    residual ``r`` (``harmonic_scores``, ``sign`` as there), to three decimals."""
+    grid = np.linspace(lo, hi, PERIOD_STEPS)
+    scores = harmonic_scores(angle, grid[0], (grid[-1] - grid[0]) / (PERIOD_STEPS - 1), PERIOD_STEPS, r[:, None], sign)
+    return round(float(grid[np.argmax(scores[:, 0])]), 3)
+
+
 def _periodic(name: str, coordinate: str, angle: np.ndarray, first: int = 1) -> _Condition:
     """Periodic in an angle at k = ``first`` .. MAX_HARMONIC cycles per revolution (the score),
     the best whole k reported, and the best real k within half a cycle of it (``k_real``: a
@@ -252,10 +260,7 @@ def _periodic(name: str, coordinate: str, angle: np.ndarray, first: int = 1) -> 
         return per_k.max(axis=0), {"k": int(np.argmax(per_k[:, 0])) + first}
 
     def refine(r: np.ndarray, params: dict[str, float]) -> dict[str, float]:
-        k = params["k"]
-        fine = np.linspace(max(k - 0.5, 0.5), k + 0.5, PERIOD_STEPS)
-        scores = harmonic_scores(angle, fine[0], (fine[-1] - fine[0]) / (PERIOD_STEPS - 1), PERIOD_STEPS, r[:, None])
-        return {"k_real": round(float(fine[np.argmax(scores[:, 0])]), 3)}
+        return {"k_real": _real_k(angle, r, max(params["k"] - 0.5, 0.5), params["k"] + 0.5)}
 
     return _Condition(
         name, evaluate,
@@ -276,24 +281,17 @@ def _friction_periodic(q: np.ndarray, qd: np.ndarray) -> _Condition:
     fine = math.pi / (2.0 * span) if span > 0 else 1.0   # a quarter cycle over the span
     first = max(MIN_CYCLES, PERIODS_IN_SPAN * 2.0 * math.pi / span) if span > 0 else 1.0
     below = max(0, int(math.ceil((1.0 - first) / fine)))
-
-    def scan(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        ks = np.concatenate([first + fine * np.arange(below), np.arange(1.0, MAX_HARMONIC + 1)])
-        scores = np.concatenate([harmonic_scores(q, first, fine, below, R, sign),
-                                 harmonic_scores(q, 1.0, 1.0, MAX_HARMONIC, R, sign)])
-        return ks, scores
+    ks = np.concatenate([first + fine * np.arange(below), np.arange(1.0, MAX_HARMONIC + 1)])
 
     def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
-        ks, scores = scan(R)
+        scores = np.concatenate([harmonic_scores(q, first, fine, below, R, sign),
+                                 harmonic_scores(q, 1.0, 1.0, MAX_HARMONIC, R, sign)])
         return scores.max(axis=0), {"k": round(float(ks[np.argmax(scores[:, 0])]), 3)}
 
     def refine(r: np.ndarray, params: dict[str, float]) -> dict[str, float]:
         k = params["k"]
         half = 0.5 if k >= 1.0 else fine
-        grid = np.linspace(max(k - half, first), k + half, PERIOD_STEPS)
-        scores = harmonic_scores(q, grid[0], (grid[-1] - grid[0]) / (PERIOD_STEPS - 1), PERIOD_STEPS,
-                                 r[:, None], sign)
-        return {"k_real": round(float(grid[np.argmax(scores[:, 0])]), 3)}
+        return {"k_real": _real_k(q, r, max(k - half, first), k + half, sign)}
 
     return _Condition(
         "friction_periodic_q", evaluate,

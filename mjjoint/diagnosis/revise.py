@@ -22,7 +22,8 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   (``unresolved_shift``), or a mode above the Nyquist frequency (``unresolved_mode``: a flexible
   rod's, which the recording cannot show); the model without it, refitted from where its fit left
   the other parameters, replaces the current one where it predicts the held-out windows better (a
-  term fitted to its bound is often fitted to none, its gain the model's own from another start). A generic
+  term fitted to its bound is often fitted to none, its gain the model's own from another start).
+  A generic
   form, the first effect too, is one where its fit cannot tell its size from none (``resolved``). So
   is an effect related to one refused before that predicted the held-out windows better than it
   does: it explains a part of what that stand-in did, and the physics acting there is neither.
@@ -320,11 +321,14 @@ def unresolved_mode(predictor: Predictor, result: FitResult, effect: str) -> str
     the term still does below it (a little compliance, a damper on the link) is what the gear's
     spring and damper hold or dissipation elsewhere gives (the effect's ``stand_ins``): it
     stands in for that physics."""
-    mode = EFFECTS[effect].mode_hz
-    if mode is None or not mode(result.structure) > predictor.m.rate / 2.0:
+    mode_hz = EFFECTS[effect].mode_hz
+    if mode_hz is None:
         return ""
-    return (f"its mode at {mode(result.structure):.3g} Hz, above the recording's Nyquist frequency "
-            f"({predictor.m.rate / 2.0:.3g} Hz): a mode the recording cannot show")
+    mode, nyquist = mode_hz(result.structure), predictor.m.rate / 2.0
+    if not mode > nyquist:
+        return ""
+    return (f"its mode at {mode:.3g} Hz, above the recording's Nyquist frequency ({nyquist:.3g} Hz): a mode the "
+            "recording cannot show")
 
 
 def _refit_without(predictor: Predictor, after: FitResult, step: Step, options: DiagnoseOptions) -> FitResult:

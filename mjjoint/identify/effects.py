@@ -215,26 +215,26 @@ def _read_flexibility(model: Model) -> dict[str, float] | None:
 RAYLEIGH_ROD_SHARE = 33.0 / 140.0
 
 
-def _rod_stiffness_per_hz2(structure) -> float:
-    """EI [N m^2] over the squared first mode [Hz^2] of the rod with the hub held: a cantilever
-    with its tip mass and Rayleigh's share of the rod's, k = 3 EI / L^3."""
-    arm = structure.nominal
-    mass = structure.values.get("mass.tip", arm.tip_mass) + RAYLEIGH_ROD_SHARE * arm.rod_mass
-    return mass * (2 * math.pi) ** 2 * arm.rod_length ** 3 / 3
+def _rod_mass(structure) -> float:
+    """The mass [kg] at the tip of the rod's first mode with the hub held, a cantilever of
+    stiffness 3 EI / L^3: its tip mass and Rayleigh's share of the rod's."""
+    return structure.values.get("mass.tip", structure.nominal.tip_mass) + RAYLEIGH_ROD_SHARE * structure.nominal.rod_mass
 
 
 def _rod_mode_hz(structure) -> float:
-    """The rod's first mode [Hz] with the hub held (``_rod_stiffness_per_hz2``)."""
-    return math.sqrt(structure.values["link_flexibility.ei"] / _rod_stiffness_per_hz2(structure))
+    """The rod's first mode [Hz] with the hub held (``_rod_mass``)."""
+    k = 3 * structure.values["link_flexibility.ei"] / structure.nominal.rod_length ** 3
+    return math.sqrt(k / _rod_mass(structure)) / (2 * math.pi)
 
 
 def _flexibility_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
-    """Started where the rod's first mode with the hub held lies at the resonance the residual
-    locates (``_rod_stiffness_per_hz2``); from the catalogue's EI where none is located."""
+    """Started where the rod's first mode with the hub held (``_rod_mass``) lies at the resonance
+    the residual locates; from the catalogue's EI where none is located."""
     freqs = [c["params"]["frequency_hz"] for c in conds if c["name"] == "resonance" and c["significant"]]
     if not freqs:
         return [({}, {})]
-    return [({"link_flexibility.ei": _rod_stiffness_per_hz2(structure) * freqs[0] ** 2}, {})]
+    ei = _rod_mass(structure) * (2 * math.pi * freqs[0]) ** 2 * structure.nominal.rod_length ** 3 / 3
+    return [({"link_flexibility.ei": ei}, {})]
 
 
 def _friction_read(values, present=lambda f: True, coulomb: bool = True):
