@@ -10,7 +10,8 @@ Each round:
    the training windows; if the best one's gain is material but inconsistent over windows
    (only the rank test fails), or it fails while the model misses FAR_FROM_FLOOR times its
    noise floor (the terms it has bent toward what it lacks), or it is a sensor effect screened
-   by default while the model misses its floor (``_freed_physics``), once more with every parameter
+   by default (``_freed_physics``) or passes with rivals the held-out windows cannot tell apart
+   from it (``_freed_rival``) while the model misses its floor, once more with every parameter
    free, from and against the current structure refitted with every parameter free, the rank
    test at half the level (stand-ins for a missing effect need not sit at its site: a delay's
    phase lag in the load's viscous coefficient, a flexible rod's in a rigid link's gravity and
@@ -1149,6 +1150,10 @@ def _escalation(choice: _Choice, options: DiagnoseOptions, far: float, explained
         return why, _second_look
     if not choice.failed and _by_default_sensor(choice.best) and not explained:
         return f"is a sensor effect while the model misses {far:.3g} times its noise floor", _freed_physics
+    if not choice.failed and choice.alternatives and not explained:
+        rivals = ", ".join(a.replace(BUNDLE, " + ") for a in choice.alternatives)
+        return (f"passes with rivals the held-out windows cannot tell apart from it ({rivals}) while the model "
+                f"misses {far:.3g} times its noise floor"), _freed_rival
     return None
 
 
@@ -1178,12 +1183,42 @@ def _freed_physics(predictor: Predictor, ref: FitResult, screened: dict[str, tup
     as the escalation's) and predicts the held-out windows at least as well as the sensor effect
     fitted the same way (its subset estimate where its screen was not finished), so a real skew,
     which no physics term reproduces, keeps its place."""
+    return _freed_choice(predictor, ref, screened, rest, options, floor_cost, _by_default_sensor, [sensor.best],
+                         f"{sensor.best.replace(BUNDLE, ' + ')} (a sensor effect, screened again once it is in)")
+
+
+def _freed_rival(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],
+                 rest: dict[str, tuple[float, FitResult]], tied: _Choice, options: DiagnoseOptions,
+                 floor_cost: float) -> _Choice | None:
+    """The candidate to name instead of ``tied``, a passing candidate with rivals the held-out
+    windows cannot tell apart from it (``_choose``) while the model misses its noise floor, from
+    the screens with every parameter free, or None. Unrelated terms that gain alike show that
+    something is missing, not what: each takes up the share of it that its form has (an input
+    offset, a friction and a viscous asymmetry, each a force that depends on the direction, for
+    a hysteretic gear whose own screen, the gear's stand-ins held, gained nothing). Another
+    candidate is named where it passes at half the level and predicts the held-out windows at
+    least as well as each of the tied fitted the same way; where one of them wins there too,
+    the choice stands."""
+    keys = [tied.best, *tied.alternatives]
+    return _freed_choice(predictor, ref, screened, rest, options, floor_cost, keys.__contains__, keys,
+                         f"{tied.best.replace(BUNDLE, ' + ')} and its rivals (a gain they share, screened again "
+                         "once it is in)")
+
+
+def _freed_choice(predictor: Predictor, ref: FitResult, screened: dict[str, tuple[float, FitResult]],
+                  rest: dict[str, tuple[float, FitResult]], options: DiagnoseOptions, floor_cost: float,
+                  excluded, rivals: list[str], before: str) -> _Choice | None:
+    """The choice of the screens with every parameter free (``screened`` against ``ref``;
+    ``rest``: those left on the subset) at half the level, where it passes, is not ``excluded``
+    and predicts the held-out windows at least as well as each of ``rivals`` fitted the same way
+    (a subset estimate where its screen was not finished); else None. ``before``: what it is
+    named before, for its evidence."""
     choice = _decide(predictor, ref, screened, options, floor_cost, options.max_p / 2)
-    rival = {**rest, **screened}.get(sensor.best, (np.inf, None))[0]
-    if choice.failed or _by_default_sensor(choice.best) or not choice.cand.cost_test <= rival:
+    pool = {**rest, **screened}
+    rival = min(pool.get(k, (np.inf, None))[0] for k in rivals)
+    if choice.failed or excluded(choice.best) or not choice.cand.cost_test <= rival:
         return None
-    choice.consistency["windows"] += (f"; named before {sensor.best.replace(BUNDLE, ' + ')} (a sensor effect, "
-                                      "screened again once it is in)")
+    choice.consistency["windows"] += f"; named before {before}"
     return choice
 
 
