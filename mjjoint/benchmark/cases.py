@@ -48,6 +48,8 @@ COVERAGE_ONLY = {
                                 lambda r: {"load_dependent_friction.gain": r.uniform(0.1, 0.3)}),
     "viscous_asymmetry": ("viscous_asymmetry.ratio",
                           lambda r: {"viscous_asymmetry.ratio": r.choice([-1, 1]) * r.uniform(0.25, 0.5)}),
+    "input_offset": ("input_offset.offset",
+                     lambda r: {"input_offset.offset": r.choice([-1, 1]) * r.uniform(0.003, 0.01)}),
 }
 TRUTHS = {**CONCEALED, **COVERAGE_ONLY}
 
