@@ -1194,8 +1194,8 @@ def _freed_rival(predictor: Predictor, ref: FitResult, screened: dict[str, tuple
     windows cannot tell apart from it (``_choose``) while the model misses its noise floor, from
     the screens with every parameter free, or None. Unrelated terms that gain alike show that
     something is missing, not what: each takes up the share of it that its form has (an input
-    offset, a friction and a viscous asymmetry, each a force that depends on the direction, for
-    a hysteretic gear whose own screen, the gear's stand-ins held, gained nothing). Another
+    offset and a friction and a viscous asymmetry, forces that push one way more than the other,
+    for a hysteretic gear whose own screen, the gear's stand-ins held, gained nothing). Another
     candidate is named where it passes at half the level and predicts the held-out windows at
     least as well as each of the tied fitted the same way; where one of them wins there too,
     the choice stands."""
