@@ -23,10 +23,10 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   rod's, which the recording cannot show); the model without it, refitted from where its fit left
   the other parameters, replaces the current one where it predicts the held-out windows better (a
   term fitted to its bound is often fitted to none, its gain the model's own from another start).
-  A generic
-  form, the first effect too, is one where its fit cannot tell its size from none (``resolved``). So
-  is an effect related to one refused before that predicted the held-out windows better than it
-  does: it explains a part of what that stand-in did, and the physics acting there is neither.
+  A generic form, the first effect too, is one where its fit cannot tell its size from none
+  (``resolved``). So is an effect related to one refused before that predicted the held-out
+  windows better than it does: it explains a part of what that stand-in did, and the physics
+  acting there is neither.
 - **Swap**: each named effect is replaced by each of its rivals (``rivals``: the effects acting
   at the same site under a shared residual condition, and the ones the step found
   indistinguishable), the rest refitted; the swap is kept when the swapped model passes the
