@@ -106,3 +106,24 @@ def test_mjjoint_fit_runs_the_fitted_model_free_once_for_the_intervals_and_the_f
     assert alone.intervals == reported.intervals
     assert judged(predictor, alone)[1].twin == floor.twin
     assert len(runs) == 3
+
+
+def test_a_twin_reads_the_models_own_sensors(tmp_path):
+    # A twin is recorded through the fitted model's sensor effects, as its window predictions are:
+    # without them the fit on the twin walks a right gain, offset or skew back to none, and the
+    # widened interval spans twice the effect.
+    case = make_case("torque_gain", 0)
+    rec = read_recording(write_case_recording(case, tmp_path, 2.0), gear_ratio=GEAR_RATIO)
+    predictor = Predictor(Measured.from_recording(rec, GEAR_RATIO), WindowDesign(seed=0))
+    plain = Structure.create(case.base_effects, case.truth.nominal, GEAR_RATIO, dict(case.truth.values))
+    sensed = Structure.create(case.base_effects + ("sensor_skew", "torque_gain", "torque_offset"),
+                              case.truth.nominal, GEAR_RATIO,
+                              {**case.truth.values, "sensor_skew.lag": 2e-3, "torque_gain.gain": 1.2,
+                               "torque_offset.offset": 0.3})
+    bare, seen = predictor.free_run(plain), predictor.free_run(sensed)
+    ran = slice(int(predictor.starts[0]), None)
+    assert np.allclose(seen["tau"][ran], 1.2 * bare["tau"][ran] + 0.3)
+    late = int(2e-3 * predictor.m.rate)  # whole samples: the skew's shift reads the samples themselves
+    # (the skewed model's run starts from states rebuilt for its skew: the same to rounding)
+    assert np.allclose(seen["theta"][ran][late:], bare["theta"][ran][:-late], rtol=1e-9, atol=1e-12)
+    assert np.array_equal(seen["q"], bare["q"])

@@ -50,6 +50,15 @@ COVERAGE_ONLY = {
                           lambda r: {"viscous_asymmetry.ratio": r.choice([-1, 1]) * r.uniform(0.25, 0.5)}),
     "input_offset": ("input_offset.offset",
                      lambda r: {"input_offset.offset": r.choice([-1, 1]) * r.uniform(0.003, 0.01)}),
+    # The rod's first mode with the hub held between about 10 and 33 Hz, its hinges' damping
+    # within a factor 2 of the shipped rod's.
+    "link_flexibility": ("link_flexibility.ei", lambda r: {"link_flexibility.ei": 10 ** r.uniform(2.0, 3.0),
+                                                           "link_flexibility.beta": 10 ** r.uniform(-4.3, -3.7)}),
+    "sensor_skew": ("sensor_skew.lag", lambda r: {"sensor_skew.lag": r.choice([-1, 1]) * r.uniform(1e-3, 3e-3)}),
+    "torque_skew": ("torque_skew.lag", lambda r: {"torque_skew.lag": r.uniform(5e-4, 3e-3)}),
+    "torque_gain": ("torque_gain.gain", lambda r: {"torque_gain.gain": r.uniform(0.8, 1.25)}),
+    "torque_offset": ("torque_offset.offset",
+                      lambda r: {"torque_offset.offset": r.choice([-1, 1]) * r.uniform(0.05, 0.5)}),
 }
 TRUTHS = {**CONCEALED, **COVERAGE_ONLY}
 

@@ -9,12 +9,14 @@ from pathlib import Path
 import numpy as np
 
 from ..diagnosis.loop import DiagnoseOptions, diagnose
+from ..identify.effects import EFFECTS
 from ..identify.fit import evaluate
 from ..identify.structure import Structure
 from ..identify.windows import Measured, Predictor, WindowDesign
 from ..recordings import Recording, read_recording, write_recording
 from .cases import CONCEALED, GEAR_RATIO, NOMINAL, Case, make_case
 from ..rehearse import LabProgram, record
+from ..rehearse.sensors import Sensors, quantise
 
 
 @dataclass
@@ -61,12 +63,28 @@ def write_case_recording(case: Case, folder: Path, duration: float, timestep: fl
     arm, joint = case.truth.model_params()
     if timestep is not None:
         arm = dataclasses.replace(arm, timestep=timestep)
-    cols = record(arm, joint, LabProgram(duration=duration, seed=case.seed))
+    program = LabProgram(duration=duration, seed=case.seed)
+    if any(EFFECTS[e].measure is not None for e in case.truth.effects):
+        cols = _sensed(case, record(arm, joint, program, sensors=Sensors(encoder_bits=0, torque_noise=0.0)))
+    else:
+        cols = record(arm, joint, program)
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "recording.csv"
     write_recording(path, Recording(t=cols["t"], u=cols["u"], q=cols["q"], theta=cols["theta"],
                                     tau=cols["tau"], gear_ratio=GEAR_RATIO, meta={}))
     return path
+
+
+def _sensed(case: Case, cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Ideal link and torque readings as the truth's sensor effects and then the lab's sensors
+    (``Sensors()``: the link encoder's counts, the torque cell's noise) log them. The loop is
+    closed on the motor angle, which no sensor effect touches, so the run is the one logged."""
+    lab = Sensors()
+    rate = 1.0 / float(cols["t"][1] - cols["t"][0])
+    seen = case.truth.measured({**cols, "delta": cols["q"] / GEAR_RATIO - cols["theta"]}, rate)
+    rng = np.random.default_rng(case.seed)
+    return {**cols, "theta": quantise(seen["theta"], lab.encoder_bits),
+            "tau": seen["tau"] + rng.normal(0.0, lab.torque_noise, len(cols["tau"]))}
 
 
 def _fitted_value(case: Case, structure: Structure) -> float | None:

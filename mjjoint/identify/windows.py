@@ -523,8 +523,9 @@ class Predictor:
         """The structure simulated under the measured input without restarts: from the first
         window of each stacked recording to its end, as the recording would have been made.
 
-        Returns q, theta, delta, tau over the whole recording (samples no run reaches, before
-        a recording's first window, keep the measured values; NaN where the run diverged).
+        Returns q, theta, delta, tau over the whole recording as the structure's sensors read
+        them (``Structure.measured``, as its window predictions are; samples no run reaches,
+        before a recording's first window, keep the measured values; NaN where the run diverged).
         The run is rolled out in consecutive stretches (``_rollouts``), so its memory does not
         grow with the recording's length.
         """
@@ -551,6 +552,9 @@ class Predictor:
                 at = i0 + 1 + step // sub  # the sample the stretch's first kept step ends on
                 for k, v in self._signals(model, state[:, sub - 1::sub], ji).items():
                     out[k][at:at + v.shape[1]] = v[0]
+            seen = structure.measured({k: v[i0:end] for k, v in out.items()}, m.rate)
+            for k, v in out.items():
+                v[i0:end] = seen[k]
         return out
 
     def _rollouts(self, models: list, x0: np.ndarray, ctrl, nstep: int | None = None):
