@@ -3,17 +3,21 @@ offset and gain change what is measured, not the physics; injected into a record
 recovers them."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 import mjjoint
 from mjjoint.assets import ArmSpec
+from mjjoint.benchmark.cases import GEAR_RATIO, make_case
+from mjjoint.benchmark.score import write_case_recording
 from mjjoint.diagnosis.loop import candidates_for
 from mjjoint.identify.effects import EFFECTS, shift_late
-from mjjoint.identify.fit import fit
+from mjjoint.identify.fit import evaluate, fit
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
-from mjjoint.recordings import Recording
+from mjjoint.recordings import Recording, read_recording
 
 PHYSICS = ("coulomb_friction", "viscous_friction", "linear_stiffness", "transmission_damping")
 TRUTH = {"coulomb_friction.fc": 0.05, "viscous_friction.sigma": 2e-4, "linear_stiffness.k1": 1e4,
@@ -26,6 +30,27 @@ def test_a_late_read_is_the_signal_shifted_by_the_lag():
     x = np.arange(10.0)[None, :] ** 2
     assert np.allclose(shift_late(x, 2.0)[0, 2:], x[0, :-2])
     assert np.allclose(shift_late(x, 0.5)[0, 1:], (x[0, :-1] + x[0, 1:]) / 2)
+
+
+def test_a_read_beyond_the_ends_follows_the_motion():
+    # Read early (a negative lag), a window's last samples need what follows it: a line goes on
+    # along its slope, where an end held would miss by the whole motion over the shift.
+    line = 3.0 + 0.5 * np.arange(12.0)[None, :]
+    for lag in (-2.5, -1.0, 1.0, 2.5):
+        assert np.allclose(shift_late(line, lag), line - 0.5 * lag)
+
+
+def test_the_true_model_of_an_encoder_read_early_explains_its_recording(tmp_path):
+    # The link encoder read 2 ms early (the motor's 2 ms late): the truth, which has the skew,
+    # predicts the deflection to the noise, as it does read late.
+    case = make_case("sensor_skew", 6)
+    for lag in (-2e-3, 2e-3):
+        truth = Structure.create(case.truth.effects, case.truth.nominal, GEAR_RATIO,
+                                 {**case.truth.values, "sensor_skew.lag": lag}, case.truth.settings)
+        rec = read_recording(write_case_recording(dataclasses.replace(case, truth=truth), tmp_path / str(lag), 4.0),
+                             gear_ratio=GEAR_RATIO)
+        nrmse = evaluate(Predictor(Measured.from_recording(rec, GEAR_RATIO), WindowDesign(seed=6)), truth)[3]
+        assert nrmse["delta"] < 0.01, (lag, nrmse)
 
 
 def test_skew_and_torque_sensor_errors_are_recovered_where_injected():

@@ -128,18 +128,20 @@ def _ripple(model: Model, v: dict[str, float]) -> Model:
 
 def _skewed(pred: dict, v: dict[str, float], rate: float) -> dict:
     """The link angle as an encoder read ``lag`` late sees it, theta(t - lag), and the deflection
-    from it (held at the window's first sample before it, inside the warmup)."""
+    from it (beyond a window's ends along its first or last step: ``shift_late``)."""
     theta = shift_late(pred["theta"], v["sensor_skew.lag"] * rate)
     # delta = q / N - theta: the motor side is read on time.
     return {**pred, "theta": theta, "delta": pred["delta"] + pred["theta"] - theta}
 
 
 def shift_late(x: np.ndarray, samples: float) -> np.ndarray:
-    """Rows of x read ``samples`` (fractional, either sign) late, linearly interpolated, the
-    ends held."""
+    """Rows of x read ``samples`` (fractional, either sign) late, linearly interpolated, and
+    extrapolated beyond the ends along the first or the last step: a window's prediction ends
+    where a sensor read early needs what follows, and an end held there misses by the whole
+    motion over the shift."""
     n = x.shape[-1]
-    at = np.clip(np.arange(n) - samples, 0.0, n - 1.0)
-    i = np.minimum(np.floor(at).astype(int), n - 2)
+    at = np.arange(n) - samples
+    i = np.clip(np.floor(at).astype(int), 0, n - 2)
     f = at - i
     return x[..., i] * (1.0 - f) + x[..., i + 1] * f
 
