@@ -30,7 +30,9 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
 - **Swap**: each named effect is replaced by each of its rivals (``rivals``: the effects acting
   at the same site under a shared residual condition, and the ones the step found
   indistinguishable), the rest refitted; the swap is kept when the swapped model passes the
-  acceptance rule against the current one. The incumbent keeps its place on a tie. A swap is
+  acceptance rule against the current one. The incumbent keeps its place on a tie, and a rival
+  whose model predicts the held-out windows as well (within a tenth of the step's gain, as
+  rivals tie at a screen) is reported indistinguishable from it. A swap is
   fitted in a screen's two stages (``loop._screen``): on the screens' subset of the windows
   first, finished on all of them only where its subset cost, scaled as a screen's is, could
   pass the relative gain.
@@ -55,8 +57,8 @@ from ..identify.fit import FitResult, finish, fit, window_costs
 from ..identify.intervals import Z95
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
-from .loop import (BUNDLE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust_kept, acceptance, bundle,
-                   default_candidates, gain_shortfalls, parts, screened_params, with_candidate)
+from .loop import (BUNDLE, TIE_SHARE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust_kept,
+                   acceptance, bundle, default_candidates, gain_shortfalls, parts, screened_params, with_candidate)
 
 
 @dataclass
@@ -356,14 +358,36 @@ def revise(predictor: Predictor, current: FitResult, steps: list[Step], where: d
     done: list[Revision] = []
     for _ in range(2 * len(steps)):  # each pass changes one step; a cycle cannot outlast this
         change = _removal(predictor, current, steps, options, floor_cost, say)
+        tied: list[tuple[int, str]] = []
         if change is None:
-            change = _swap(predictor, current, steps, where, options, floor_cost, say, excluded)
+            change = _swap(predictor, current, steps, where, options, floor_cost, say, excluded, tied)
         if change is None:
+            steps = _with_ties(steps, tied)
             break
         current, steps, revision = change
         done.append(revision)
         say(f"  revised: {revision.line}")
     return current, steps, done
+
+
+def _tie_cost(current: FitResult, step: Step) -> float:
+    """The held-out cost up to which a model with a rival in ``step``'s place predicts as well as
+    ``current``: within (1 - TIE_SHARE) of the step's own gain, as rivals tie at a screen
+    (``loop._choose``); the gain rescaled to the current cost, so an early step's band is no
+    wider than it was."""
+    g = min(max(step.gain, 0.0), 0.99)
+    return current.cost_test * (1.0 + (1.0 - TIE_SHARE) * g / (1.0 - g))
+
+
+def _with_ties(steps: list[Step], tied: list[tuple[int, str]]) -> list[Step]:
+    """``steps`` with each tied rival (step index, key) among its step's alternatives: the
+    recording cannot tell them apart, and the verdict says so."""
+    steps = list(steps)
+    for i, key in tied:
+        name = key.replace(BUNDLE, " + ")
+        if name not in steps[i].alternatives:
+            steps[i] = dataclasses.replace(steps[i], alternatives=[*steps[i].alternatives, name])
+    return steps
 
 
 def _removal(predictor, current, steps, options, floor_cost, say):
@@ -391,14 +415,16 @@ def _removal(predictor, current, steps, options, floor_cost, say):
     return None
 
 
-def _swap(predictor, current, steps, where, options, floor_cost, say, excluded):
+def _swap(predictor, current, steps, where, options, floor_cost, say, excluded, tied):
     """The best swap of a named step for a rival that passes the acceptance rule against the
-    current model; None if none does."""
+    current model; None if none does. Rivals whose model predicts the held-out windows as well
+    as the current one (``_tie_cost``) without passing are appended to ``tied`` (step index, key)."""
     best = null = None
     for i, step in enumerate(steps):
         if not removable(current.structure, [step.effect]):
             continue
         reduced = without(current.structure, [step.effect])
+        tie = _tie_cost(current, step)
         for key in rivals(step, current.structure, options.candidates, excluded):
             first = _fit_variants(predictor, reduced, key, where, options)
             if null is None:  # the current model fitted on the same subset, as a screen's null is
@@ -410,16 +436,25 @@ def _swap(predictor, current, steps, where, options, floor_cost, say, excluded):
             if not guess < current.cost_test * (1.0 - options.min_gain):
                 say(f"  swap {step.effect} -> {key} on a subset of the windows: held-out cost "
                     f"{current.cost_test:.4g} -> ~{guess:.4g}")
-                continue  # cannot pass the relative gain, not worth finishing
+                if guess <= tie:  # as good, maybe: finished, it tells
+                    trial = finish(predictor, first)
+                    say(f"    finished: {trial.cost_test:.4g}" + (", a tie" if trial.cost_test <= tie else ""))
+                    if trial.cost_test <= tie:
+                        tied.append((i, key))
+                continue  # cannot pass the relative gain, not worth the refit
             trial = finish(predictor, first)
             say(f"  swap {step.effect} -> {key}: held-out cost {current.cost_test:.4g} -> {trial.cost_test:.4g}")
             if not trial.cost_test < current.cost_test * (1.0 - options.min_gain):
+                if trial.cost_test <= tie:
+                    tied.append((i, key))
                 continue  # cannot pass the relative gain, not worth the full refit
             trial = _refit(predictor, trial, options)
             gain, consistency, failed = acceptance(predictor, current, trial, parts(key)[-1], options, floor_cost,
                                                    options.max_p)
             say(f"    refitted: {trial.cost_test:.4g} (p {consistency['p']:.3g})"
                 + (f": fails {', '.join(failed)}" if failed else ": passes"))
+            if failed and trial.cost_test <= tie:
+                tied.append((i, key))
             if not failed and (best is None or trial.cost_test < best[1].cost_test):
                 best = (i, trial, key, consistency)
     if best is None:

@@ -1,7 +1,8 @@
 """Noisy twins of a recording: what a model would have recorded itself.
 
-A twin is the model's run under the measured input without restarts (``Predictor.free_run``),
-read through the recording's own sensors: the white noise and the quantisation of each signal,
+A twin is the model's run under the measured input without restarts (``Predictor.free_run``:
+through the model's own sensor effects, as its window predictions are), read through the
+recording's own sensors: the white noise and the quantisation of each signal,
 both measured on the recording (``sensor_noise``). Predicted in the recording's windows, a
 twin shows what a model that is right still misses or moves: the noise floor of a verdict
 (``diagnosis.floor``) and the bias of a fit's estimates (``fit.twin_bias``), both from window
