@@ -393,25 +393,40 @@ def test_a_pair_whose_members_each_re_explain_the_other_keeps_one(monkeypatch):
     assert rv.one_of_pair(None, before, outcomes, DiagnoseOptions(), 1e-6) is None
 
 
-def test_a_rival_that_predicts_as_well_in_a_named_effects_place_is_reported_indistinguishable(monkeypatch):
+def test_a_rival_that_predicts_as_well_in_a_named_effects_place_is_a_tie(monkeypatch):
     """The out-of-regime control at 2 kHz (seed 0): a Stribeck curve named (held-out cost -35.2 %,
-    0.001268), where the plant's LuGre bristles are what it stands for; 2SEP in its place predicts
-    as well (~0.00124 on the subset) without passing the acceptance rule against it. The recording
-    cannot tell them apart, and the verdict says so; a rival that predicts worse than the band a
-    screen's tie allows (``loop.TIE_SHARE`` of the step's gain) is not reported."""
+    0.001268), where the plant's LuGre bristles act; 2SEP in its place, finished, predicts at
+    0.001193 without passing the acceptance rule against it. The recording cannot tell them
+    apart: of the two, the one a screen would name first is named (as many parameters and
+    prerequisites, the lower cost: 2SEP), and the other is reported indistinguishable. A rival
+    that ties at a higher cost is only reported; one that predicts worse than the band a screen's
+    tie allows (``loop.TIE_SHARE`` of the step's gain) is neither."""
     from mjjoint.diagnosis import revise as rv
     current = SimpleNamespace(cost_test=0.001268, structure=SimpleNamespace(nominal=None))
     step = dataclasses.replace(_step("stribeck_friction"), gain=0.352)
     monkeypatch.setattr(rv, "removable", lambda structure, effects: True)
     monkeypatch.setattr(rv, "without", lambda structure, effects: structure)
-    monkeypatch.setattr(rv, "rivals", lambda *a: ["dynamic_friction"])
+    monkeypatch.setattr(rv, "rivals", lambda step, *a: [e for e in ("dynamic_friction", "stribeck_friction")
+                                                         if e != step.effect])
     monkeypatch.setattr(rv, "base_params", lambda nominal: [])
     monkeypatch.setattr(rv, "fit", lambda *a, **k: SimpleNamespace(cost_test=1.0))  # the null on the subset
-    for finished, tied in ((0.00124, True), (0.00131, True), (0.00136, False)):
+    monkeypatch.setattr(rv, "_refit", lambda predictor, trial, options: trial)
+    monkeypatch.setattr(rv, "acceptance", lambda predictor, ref, cand, effect, options, floor, max_p:
+                        (1.0 - cand.cost_test / ref.cost_test, {"p": 0.3}, ["paired p = 0.3 > 0.05"]))
+    values = {"dynamic_friction.k": 27.0, "dynamic_friction.b": 45.0}
+    for finished, named, others in ((0.001193, "dynamic_friction", ["stribeck_friction"]),
+                                    (0.00131, "stribeck_friction", ["dynamic_friction"]),
+                                    (0.00136, "stribeck_friction", [])):
         monkeypatch.setattr(rv, "_fit_variants", lambda *a, c=finished: SimpleNamespace(cost_test=c / 0.001268))
-        monkeypatch.setattr(rv, "finish", lambda predictor, first: SimpleNamespace(cost_test=first.cost_test * 0.001268))
+        monkeypatch.setattr(rv, "finish", lambda predictor, first: SimpleNamespace(
+            cost_test=first.cost_test * 0.001268, structure=SimpleNamespace(values=values, nominal=None)))
         lines = []
         after, steps, done = revise(None, current, [step], {}, DiagnoseOptions(), 1e-6, lines.append)
-        assert after is current and done == [] and steps[0].effect == "stribeck_friction"
-        assert (steps[0].alternatives == ["dynamic_friction"]) is tied, (finished, lines)
+        assert (steps[0].effect, steps[0].alternatives) == (named, others), (finished, lines)
         assert step.alternatives == []  # the step handed in is left as it was
+        if named == "dynamic_friction":
+            assert after.cost_test == finished and steps[0].parameters == values
+            assert [(r.kind, r.effect, r.by) for r in done] == [("swap", "stribeck_friction", "dynamic_friction")]
+            assert "predicts as well" in done[0].reason
+        else:
+            assert after is current and done == []

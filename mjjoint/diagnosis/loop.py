@@ -290,10 +290,6 @@ def with_candidate(structure: Structure, key: str, values=None, settings=None) -
     return structure.with_effect(effect, values, settings)
 
 
-def _n_params(key: str) -> int:
-    return sum(len(EFFECTS[e].params) for e in parts(key))
-
-
 def _evidence(key: str, where: dict, signs: dict[str, str] | None = None) -> list[str]:
     """The located conditions and the recording's ``signs`` (``recorded_signs``) that the effects
     of ``key`` declare as their evidence."""
@@ -1307,8 +1303,14 @@ def _choose(screened: dict[str, tuple[float, FitResult]], cost_now: float) -> tu
     best = min(screened, key=lambda k: screened[k][0])
     gain = cost_now - screened[best][0]
     rivals = [k for k in screened if gain > 0 and cost_now - screened[k][0] >= TIE_SHARE * gain]
-    chosen = min(rivals or [best], key=lambda k: (_n_params(k), len(EFFECTS[parts(k)[-1]].requires), screened[k][0]))
+    chosen = min(rivals or [best], key=lambda k: tie_order(k, screened[k][0]))
     return chosen, sorted(k for k in rivals if k != chosen)
+
+
+def tie_order(key: str, cost: float) -> tuple:
+    """Which of rivals the held-out data cannot tell apart is named first: fewest parameters,
+    then fewest prerequisite effects, then the lowest held-out ``cost``."""
+    return sum(len(EFFECTS[e].params) for e in parts(key)), len(EFFECTS[parts(key)[-1]].requires), cost
 
 
 def condition_windows(t: np.ndarray, qd: np.ndarray, starts: np.ndarray, length: int, condition: str) -> np.ndarray:

@@ -30,9 +30,10 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
 - **Swap**: each named effect is replaced by each of its rivals (``rivals``: the effects acting
   at the same site under a shared residual condition, and the ones the step found
   indistinguishable), the rest refitted; the swap is kept when the swapped model passes the
-  acceptance rule against the current one. The incumbent keeps its place on a tie, and a rival
-  whose model predicts the held-out windows as well (within a tenth of the step's gain, as
-  rivals tie at a screen) is reported indistinguishable from it. A swap is
+  acceptance rule against the current one. A rival whose model predicts the held-out windows as
+  well without passing (within a tenth of the step's gain, as rivals tie at a screen) is a tie:
+  of the two, the one a screen would name first is named (``loop.tie_order``: fewer parameters,
+  fewer prerequisites, the lower cost), and the other is reported indistinguishable from it. A swap is
   fitted in a screen's two stages (``loop._screen``): on the screens' subset of the windows
   first, finished on all of them only where its subset cost, scaled as a screen's is, could
   pass the relative gain.
@@ -58,7 +59,8 @@ from ..identify.intervals import Z95
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
 from .loop import (BUNDLE, TIE_SHARE, DiagnoseOptions, Step, _candidate_variants, _evidence, _robust_kept,
-                   acceptance, bundle, default_candidates, gain_shortfalls, parts, screened_params, with_candidate)
+                   acceptance, bundle, default_candidates, gain_shortfalls, parts, screened_params, tie_order,
+                   with_candidate)
 
 
 @dataclass
@@ -417,9 +419,11 @@ def _removal(predictor, current, steps, options, floor_cost, say):
 
 def _swap(predictor, current, steps, where, options, floor_cost, say, excluded, tied):
     """The best swap of a named step for a rival that passes the acceptance rule against the
-    current model; None if none does. Rivals whose model predicts the held-out windows as well
-    as the current one (``_tie_cost``) without passing are appended to ``tied`` (step index, key)."""
+    current model, else for a tied rival (one whose model predicts the held-out windows as well,
+    ``_tie_cost``) that a screen would have named before it (``loop.tie_order``); None if there is
+    neither. The other tied rivals are appended to ``tied`` (step index, key)."""
     best = null = None
+    ties = []  # (step index, key, the swapped fit, refitted)
     for i, step in enumerate(steps):
         if not removable(current.structure, [step.effect]):
             continue
@@ -440,13 +444,13 @@ def _swap(predictor, current, steps, where, options, floor_cost, say, excluded, 
                     trial = finish(predictor, first)
                     say(f"    finished: {trial.cost_test:.4g}" + (", a tie" if trial.cost_test <= tie else ""))
                     if trial.cost_test <= tie:
-                        tied.append((i, key))
+                        ties.append((i, key, trial, False))
                 continue  # cannot pass the relative gain, not worth the refit
             trial = finish(predictor, first)
             say(f"  swap {step.effect} -> {key}: held-out cost {current.cost_test:.4g} -> {trial.cost_test:.4g}")
             if not trial.cost_test < current.cost_test * (1.0 - options.min_gain):
                 if trial.cost_test <= tie:
-                    tied.append((i, key))
+                    ties.append((i, key, trial, False))
                 continue  # cannot pass the relative gain, not worth the full refit
             trial = _refit(predictor, trial, options)
             gain, consistency, failed = acceptance(predictor, current, trial, parts(key)[-1], options, floor_cost,
@@ -454,23 +458,43 @@ def _swap(predictor, current, steps, where, options, floor_cost, say, excluded, 
             say(f"    refitted: {trial.cost_test:.4g} (p {consistency['p']:.3g})"
                 + (f": fails {', '.join(failed)}" if failed else ": passes"))
             if failed and trial.cost_test <= tie:
-                tied.append((i, key))
+                ties.append((i, key, trial, True))
             if not failed and (best is None or trial.cost_test < best[1].cost_test):
                 best = (i, trial, key, consistency)
-    if best is None:
-        return None
-    i, trial, key, consistency = best
+    if best is not None:
+        i, trial, key, consistency = best
+        return _swapped(current, steps, i, trial, key, consistency,
+                        f"the model with {parts(key)[-1]} in its place passes the acceptance rule "
+                        f"(p {consistency['p']:.3g})")
+    for i, key, trial, refitted in sorted(ties, key=lambda t: t[2].cost_test):
+        step = steps[i]
+        if not tie_order(key, trial.cost_test) < tie_order(step.effect, current.cost_test):
+            continue
+        trial = trial if refitted else _refit(predictor, trial, options)
+        _, consistency, _ = acceptance(predictor, current, trial, parts(key)[-1], options, floor_cost, options.max_p)
+        if trial.cost_test <= _tie_cost(current, step) and (
+                tie_order(key, trial.cost_test) < tie_order(step.effect, current.cost_test)):
+            return _swapped(current, steps, i, trial, key, consistency,
+                            f"the model with {parts(key)[-1]} in its place predicts as well (p "
+                            f"{consistency['p']:.3g}), and a screen names it first of the two", tied=True)
+    tied.extend((i, key) for i, key, _, _ in ties)
+    return None
+
+
+def _swapped(current, steps, i, trial, key, consistency, reason, tied=False):
+    """(the fit, the steps, the revision) with step ``i``'s effect swapped for ``key`` fitted as
+    ``trial``; a ``tied`` swap keeps the effect replaced among the step's rivals."""
     old = steps[i]
     *needed, effect = parts(key)
+    others = [a for a in old.alternatives if a.replace(" + ", BUNDLE) != key]
     new = dataclasses.replace(
         old, effect=effect, prerequisites=[*old.prerequisites, *needed], evidence=_evidence(key, old.where),
         parameters={p.name: trial.structure.values[p.name] for e in (*old.prerequisites, *parts(key))
                     for p in EFFECTS[e].params},
-        alternatives=[a for a in old.alternatives if a.replace(" + ", BUNDLE) != key],
+        alternatives=[*others, old.effect] if tied else others,
         consistency=consistency, screen=f"swapped for {old.effect}")
     return trial, [*steps[:i], new, *steps[i + 1:]], Revision(
-        "swap", old.effect, current.cost_test, trial.cost_test,
-        f"the model with {effect} in its place passes the acceptance rule (p {consistency['p']:.3g})", by=key)
+        "swap", old.effect, current.cost_test, trial.cost_test, reason, by=key)
 
 
 def _refit(predictor: Predictor, result: FitResult, options: DiagnoseOptions) -> FitResult:

@@ -186,13 +186,19 @@ def _at_located_lag(param: str, cap: float):
 
 # [N m/rad] 2SEP's attraction gain B, the catalogue's start (TwoSEP's default).
 LAG_GAIN = TwoSEP().b
+# [1/rad] a soft contact's pre-sliding stiffness: 95 % of Fc within 0.1 rad at the motor, a
+# bristle's (LuGre's z0 of 0.01-0.03 rad) where the catalogue's start is a gear's teeth (3 mrad).
+SOFT_PRESLIDING = 30.0
 
 
 def _lag_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
     """From the catalogue's lag gain and from a tenth of it: the lag winds up over each dwell and
     holds the next breakaway until it decays, so a gain far above the truth's starts in another
-    breakaway's valley of the cost."""
-    return [({}, {}), ({"dynamic_friction.b": LAG_GAIN / 10}, {})]
+    breakaway's valley of the cost. And from a soft contact's pre-sliding (SOFT_PRESLIDING) with
+    a fifth of the gain: its valley lies decades below the catalogue's K, beyond a restart's
+    spread."""
+    return [({}, {}), ({"dynamic_friction.b": LAG_GAIN / 10}, {}),
+            ({"dynamic_friction.k": SOFT_PRESLIDING, "dynamic_friction.b": LAG_GAIN / 5}, {})]
 
 
 # The rod's damping as Rayleigh's stiffness-proportional coefficient beta = c / k of its hinges
