@@ -263,9 +263,9 @@ def test_a_screen_another_start_took_below_the_model_still_descending_goes_on_ov
 
 
 def test_a_candidate_is_fitted_from_other_starts_once_a_screen_whatever_its_variants(predictor, monkeypatch):
-    """2SEP is screened from two lag gains; the second start's other starts (the catalogue's,
-    then the same seeded draws) are the first one's start and draws again, so where both stall
-    only the first is restarted."""
+    """2SEP is screened from three starts (two lag gains, a soft contact's pre-sliding); a later
+    start's other starts (the catalogue's, then the same seeded draws) are the first one's start
+    and draws again, so where all stall only the first is restarted."""
     result = _screen_result
 
     def fake_fit(pred, s, names=None, **kw):
@@ -279,11 +279,11 @@ def test_a_candidate_is_fitted_from_other_starts_once_a_screen_whatever_its_vari
 
     ref = _faked_screens(predictor, monkeypatch, fake_fit, fake_fits_from)
     variants = loop._candidate_variants("dynamic_friction", {}, ref.structure)
-    assert len(variants) == 2 and variants[0] == ({}, {})
+    assert len(variants) == 3 and variants[0] == ({}, {})
     lines = []
     _screen(predictor, ref, {}, DiagnoseOptions(candidates=("dynamic_friction",)), lines.append, ScreenClock(1), {},
             set())
-    assert sum("screened dynamic_friction on the subset" in line for line in lines) == 2
+    assert sum("screened dynamic_friction on the subset" in line for line in lines) == 3
     # the draws a restart of the second variant would take: its own start, then the first's draws
     second = loop.with_candidate(ref.structure, "dynamic_friction", variants[1][0])
     from mjjoint.identify.fit import restart_points
