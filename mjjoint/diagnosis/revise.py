@@ -359,10 +359,9 @@ def revise(predictor: Predictor, current: FitResult, steps: list[Step], where: d
     steps and what was revised."""
     done: list[Revision] = []
     for _ in range(2 * len(steps)):  # each pass changes one step; a cycle cannot outlast this
-        change = _removal(predictor, current, steps, options, floor_cost, say)
-        tied: list[tuple[int, str]] = []
+        change, tied = _removal(predictor, current, steps, options, floor_cost, say), []
         if change is None:
-            change = _swap(predictor, current, steps, where, options, floor_cost, say, excluded, tied)
+            change, tied = _swap(predictor, current, steps, where, options, floor_cost, say, excluded)
         if change is None:
             steps = _with_ties(steps, tied)
             break
@@ -417,11 +416,11 @@ def _removal(predictor, current, steps, options, floor_cost, say):
     return None
 
 
-def _swap(predictor, current, steps, where, options, floor_cost, say, excluded, tied):
-    """The best swap of a named step for a rival that passes the acceptance rule against the
+def _swap(predictor, current, steps, where, options, floor_cost, say, excluded):
+    """(the best swap of a named step for a rival that passes the acceptance rule against the
     current model, else for a tied rival (one whose model predicts the held-out windows as well,
-    ``_tie_cost``) that a screen would have named before it (``loop.tie_order``); None if there is
-    neither. The other tied rivals are appended to ``tied`` (step index, key)."""
+    ``_tie_cost``) that a screen would have named before it (``loop.tie_order``), or None if there
+    is neither; the tied rivals (step index, key) where there is none)."""
     best = null = None
     ties = []  # (step index, key, the swapped fit, refitted)
     for i, step in enumerate(steps):
@@ -465,7 +464,7 @@ def _swap(predictor, current, steps, where, options, floor_cost, say, excluded, 
         i, trial, key, consistency = best
         return _swapped(current, steps, i, trial, key, consistency,
                         f"the model with {parts(key)[-1]} in its place passes the acceptance rule "
-                        f"(p {consistency['p']:.3g})")
+                        f"(p {consistency['p']:.3g})"), []
     for i, key, trial, refitted in sorted(ties, key=lambda t: t[2].cost_test):
         step = steps[i]
         if not tie_order(key, trial.cost_test) < tie_order(step.effect, current.cost_test):
@@ -476,9 +475,8 @@ def _swap(predictor, current, steps, where, options, floor_cost, say, excluded, 
                 tie_order(key, trial.cost_test) < tie_order(step.effect, current.cost_test)):
             return _swapped(current, steps, i, trial, key, consistency,
                             f"the model with {parts(key)[-1]} in its place predicts as well (p "
-                            f"{consistency['p']:.3g}), and a screen names it first of the two", tied=True)
-    tied.extend((i, key) for i, key, _, _ in ties)
-    return None
+                            f"{consistency['p']:.3g}), and a screen names it first of the two", tied=True), []
+    return None, [(i, key) for i, key, _, _ in ties]
 
 
 def _swapped(current, steps, i, trial, key, consistency, reason, tied=False):
