@@ -237,6 +237,7 @@ class JointState:
     w_sign: float = 0.0
     x: float = 0.0
     pending: tuple | None = None  # 2SEP states where a substepped step ends (joint_forces)
+    load: float = 0.0  # what the step's transmission torque added to 2SEP's levels (joint_forces)
 
     def as_list(self) -> list[float]:
         return [self.z1, self.z2, self.omega, self.q_r, self.w_sign, self.x]
@@ -307,8 +308,8 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
                          if p.ripple is not None else 0.0)
     engaged_teeth = tr.backlash == 0.0 or engaged(q / n - theta, tr.backlash) != 0.0
     damping = -(tr.damping if engaged_teeth else 0.0) / n ** 2
-    # a load-dependent map: both levels raised by load_gain |T| / N
-    load = f.load_gain * abs(t) / n if isinstance(f, StaticFriction) else 0.0
+    # load-dependent friction: both levels raised by load_gain |T| / N
+    load = f.load_gain * abs(t) / n if f is not None else 0.0
     if isinstance(f, StaticFriction) and f.v_eps == 0 and hj > 0:
         # the exact sign: (1 - damping hj) w1 + hj S(w1) = (1 - damping hj) wq + hj (other + explicit)
         args = (f.fc + load, f.fs + load, f.vs, f.shape, f.sigma, f.asym, f.sigma_asym)
@@ -322,11 +323,13 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
     if isinstance(f, TwoSEP):
         if math.isnan(other):
             other = -(explicit - s.z1)
-        w1, fric = twosep_velocity(f, s.z1, s.z2, s.omega, s.q_r, s.w_sign, explicit, damping, other, wq, h, hj)
+        w1, fric = twosep_velocity(f, s.z1, s.z2, s.omega, s.q_r, s.w_sign, explicit, damping, other, wq, h, hj,
+                                   load)
         s.pending = None
+        s.load = load
         if hj > 0 and twosep_event(f, s.w_sign, wq, w1):
             *end, = twosep_substeps(f, s.z1, s.z2, s.omega, s.q_r, s.w_sign, explicit, damping, other, wq, h, hj,
-                                    SUBSTEPS)
+                                    SUBSTEPS, load)
             w1, s.pending = end[0], tuple(end[1:])
             # the torque that lands the update w1 = wq + hj (other + torque) where the substeps end
             return (w1 - wq) / hj - other, _link(p, t, wtheta, hjl, other_l)
@@ -346,16 +349,16 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
     return motor, _link(p, t, wtheta, hjl, other_l)
 
 
-def twosep_velocity(f: TwoSEP, z1, z2, omega, q_r, w_sign, explicit, g, other, wq, h, hj):
+def twosep_velocity(f: TwoSEP, z1, z2, omega, q_r, w_sign, explicit, g, other, wq, h, hj, load=0.0):
     """(w1, friction) over one step: w1 = wq + hj (other + explicit + g (w1 - wq) - F), F = z1 + c w1,
     the lag damper c = B|z2| where z2 has the sign of the w1 reached without it; a step that
-    reverses the motion takes z1 where it ends (``reversal_step``)."""
+    reverses the motion takes z1 where it ends (``reversal_step``, at Fc raised by ``load``)."""
     k = 1.0 - g * hj
     w1 = wq + hj * (other + (explicit - z1)) / k
     c = f.b * abs(z2) if sgn(z2) == sgn(w1) != 0 else 0.0
     if hj > 0 and w1 != 0 and sgn(w1) != w_sign:
         w1, z1 = reversal_step(k * wq + hj * (other + (explicit - z1)), k + c * hj, hj, z1, omega, q_r, w_sign, h,
-                               f.fc, f.k, f.asym)
+                               f.fc + load, f.k, f.asym)
         return w1, z1 + c * w1
     w1 = (wq * k + hj * (other + (explicit - z1))) / (k + c * hj)
     return w1, z1 + c * w1
@@ -366,14 +369,16 @@ def twosep_event(f: TwoSEP, w_sign, wq, w1):
     return (w1 != 0 and sgn(w1) != w_sign) or min(abs(wq), abs(w1)) < EVENT_SPEED * f.vs
 
 
-def twosep_substeps(f: TwoSEP, z1, z2, omega, q_r, w_sign, explicit, g, other, wq, h, hj, n):
+def twosep_substeps(f: TwoSEP, z1, z2, omega, q_r, w_sign, explicit, g, other, wq, h, hj, n, load=0.0):
     """n steps of h / n, each ``twosep_velocity`` then ``twosep_step``, under the frozen drive
-    other + explicit + g (w - wq). Returns (w1, z1, z2, omega, q_r, w_sign)."""
+    other + explicit + g (w - wq), the levels raised by ``load``. Returns (w1, z1, z2, omega, q_r,
+    w_sign)."""
     w = wq
     for _ in range(n):
-        w, _ = twosep_velocity(f, z1, z2, omega, q_r, w_sign, explicit + g * (w - wq), g, other, w, h / n, hj / n)
-        z1, z2, omega, q_r, w_sign = twosep_step(z1, z2, omega, q_r, w_sign, w, h / n, f.fc, f.fs, f.vs, f.shape,
-                                                 f.sigma, f.k, f.b, f.asym, f.sigma_asym)
+        w, _ = twosep_velocity(f, z1, z2, omega, q_r, w_sign, explicit + g * (w - wq), g, other, w, h / n, hj / n,
+                               load)
+        z1, z2, omega, q_r, w_sign = twosep_step(z1, z2, omega, q_r, w_sign, w, h / n, f.fc + load, f.fs + load,
+                                                 f.vs, f.shape, f.sigma, f.k, f.b, f.asym, f.sigma_asym)
     return w, z1, z2, omega, q_r, w_sign
 
 
@@ -399,8 +404,8 @@ def joint_advance(p: JointParams, s: JointState, q, wq, theta, wtheta, h) -> Joi
         out.z1, out.z2, out.omega, out.q_r, out.w_sign = s.pending
     elif isinstance(f, TwoSEP):
         out.z1, out.z2, out.omega, out.q_r, out.w_sign = twosep_step(
-            s.z1, s.z2, s.omega, s.q_r, s.w_sign, wq, h, f.fc, f.fs, f.vs, f.shape, f.sigma, f.k, f.b, f.asym,
-            f.sigma_asym)
+            s.z1, s.z2, s.omega, s.q_r, s.w_sign, wq, h, f.fc + s.load, f.fs + s.load, f.vs, f.shape, f.sigma, f.k,
+            f.b, f.asym, f.sigma_asym)
     hyst = p.transmission.hysteresis
     if hyst is not None:
         n = p.transmission.gear_ratio

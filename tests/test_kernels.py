@@ -52,7 +52,8 @@ def twoseps(draw) -> TwoSEP:
     return TwoSEP(fc=fc, fs=fs, vs=draw(finite(1e-3, 10.0)),
                   shape=draw(finite(0.1, 5.0)), sigma=draw(finite(0.0, 1e-2)),
                   k=draw(finite(1.0, 1e5)), b=draw(finite(0.0, 500.0)),
-                  asym=min(fc, fs) * draw(finite(-0.99, 0.99)), sigma_asym=draw(finite(-0.99, 0.99)))
+                  asym=min(fc, fs) * draw(finite(-0.99, 0.99)), sigma_asym=draw(finite(-0.99, 0.99)),
+                  load_gain=draw(st.just(0.0) | finite(0.0, 0.9)))
 
 
 @st.composite
@@ -227,13 +228,13 @@ def test_reversal_step(s, a, kd, hj, h, p):
 
 @SETTINGS
 @given(s=reachable_2sep_states(), w=velocity, d=finite(-1.0, 1.0), gd=st.just(0.0) | finite(-1.0, 0.0),
-       hj=finite(1e-3, 100.0), h=finite(1e-5, 2e-3), p=twoseps())
-@example(s=(0.08, 1e-3, 0.08, 0.02, 1.0), w=0.3, d=-0.1, gd=0.0, hj=10.0, h=5e-4, p=TwoSEP())  # turned back
-@example(s=(0.0, 0.0, 0.0, 0.0, 0.0), w=0.0, d=0.2, gd=-0.01, hj=10.0, h=5e-4, p=TwoSEP())     # breakaway
-def test_twosep_substeps(s, w, d, gd, hj, h, p):
+       hj=finite(1e-3, 100.0), h=finite(1e-5, 2e-3), p=twoseps(), dl=st.just(0.0) | finite(0.0, 0.5))
+@example(s=(0.08, 1e-3, 0.08, 0.02, 1.0), w=0.3, d=-0.1, gd=0.0, hj=10.0, h=5e-4, p=TwoSEP(), dl=0.0)  # turned back
+@example(s=(0.0, 0.0, 0.0, 0.0, 0.0), w=0.0, d=0.2, gd=-0.01, hj=10.0, h=5e-4, p=TwoSEP(), dl=0.0)     # breakaway
+def test_twosep_substeps(s, w, d, gd, hj, h, p, dl):
     blk = pack(drive_joint(JointParams(friction=p)), 0, 0, -1, -1)
-    got = kernels.twosep_substeps(blk, *s, d, gd, 0.0, w, h, hj, kernels.SUBSTEPS)
-    want = ref.twosep_substeps(p, *s, d, gd, 0.0, w, h, hj, kernels.SUBSTEPS)
+    got = kernels.twosep_substeps(blk, *s, d, gd, 0.0, w, h, hj, kernels.SUBSTEPS, dl)
+    want = ref.twosep_substeps(p, *s, d, gd, 0.0, w, h, hj, kernels.SUBSTEPS, dl)
     scales = (abs(w) + hj * (abs(d) + 1.0), 4.0, 50.0, 4.0, 1.0, 1.0)
     assert all(close(g, r, sc) for g, r, sc in zip(got, want, scales)), (got, want)
 
@@ -448,17 +449,19 @@ def test_catch_up_advances_once_per_new_time(p, s, m, h, hj, hjl):
     theta, wq, delta, wtheta = m
     q = p.transmission.gear_ratio * (theta + delta)
     blk = pack(p, 0, 0, 1, 1)
+    last_t = 3.0  # the transmission torque of the last evaluation: it set the friction's levels
+    s.load = p.friction.load_gain * last_t / p.transmission.gear_ratio if p.friction is not None else 0.0
     want = ref.joint_advance(p, s, q, wq, theta, wtheta, h).as_list()
     for at, t, moved in ((0.0, h, True), (h, h, False), (np.nan, h, False)):
         st_arr = plugin_state(s, at=at, other=0.3, other_t=7.0, other_l=-2.0)
-        st_arr[WP], st_arr[FP], st_arr[WPL], st_arr[TP], st_arr[FPL] = wq - 0.5, -0.1, wtheta + 0.2, 3.0, 1.5
+        st_arr[WP], st_arr[FP], st_arr[WPL], st_arr[TP], st_arr[FPL] = wq - 0.5, -0.1, wtheta + 0.2, last_t, 1.5
         kernels.joint_catch_up(blk, st_arr, q, wq, theta, wtheta, t, h, hj, hjl)
         assert st_arr[AT] == t
         n = p.transmission.gear_ratio
         j_rel = h / (hj / n ** 2 + hjl)
         if moved:
             assert close(st_arr[FO], 0.5 / hj + 0.1, 1e-9 * (0.5 / hj + abs(wq) / hj))
-            want_t = j_rel * (0.5 / n + 0.2) / h + 3.0
+            want_t = j_rel * (0.5 / n + 0.2) / h + last_t
             assert close(st_arr[FOT], want_t, 1e-9 * (abs(want_t) + j_rel * (abs(wq) / n + abs(wtheta)) / h))
             assert close(st_arr[FOL], -0.2 / hjl - 1.5, 1e-9 * (0.2 / hjl + abs(wtheta) / hjl + 1.5))
             assert st_arr[FOL2] == -2.0  # the step before's, for the extrapolation
@@ -732,30 +735,37 @@ def test_hysteresis_history(delta, x0, backlash, mu):
 
 
 @SETTINGS
-@given(w=st.lists(velocity, min_size=1, max_size=30), h=finite(1e-5, 2e-3), p=twoseps())
-def test_friction_history(w, h, p):
-    blk = pack(JointParams(friction=p), 0, 0, 1, 1)
+@given(w=st.lists(velocity, min_size=1, max_size=30), h=finite(1e-5, 2e-3), p=twoseps(), torque=finite(-50.0, 50.0))
+def test_friction_history(w, h, p, torque):
+    joint = JointParams(friction=p)
+    blk = pack(joint, 0, 0, 1, 1)
+    load = p.load_gain * abs(torque) / joint.transmission.gear_ratio  # both levels raised by g |T| / N
     s = [0.01, 0.0, 0.0, 0.0, 0.0]
     want = []
     for wi in w:
-        s = list(ref.twosep_step(*s, wi, h, p.fc, p.fs, p.vs, p.shape, p.sigma, p.k, p.b, p.asym, p.sigma_asym))
+        s = list(ref.twosep_step(*s, wi, h, p.fc + load, p.fs + load, p.vs, p.shape, p.sigma, p.k, p.b, p.asym,
+                                 p.sigma_asym))
         want.append(s)
-    got = kernels.friction_history(blk, np.asarray(w), h, plugin_state(ref.JointState(z1=0.01)))
+    got = kernels.friction_history(blk, np.asarray(w), np.full(len(w), torque), h,
+                                   plugin_state(ref.JointState(z1=0.01)))
     assert got.shape == (len(w), NSTATE)
     for g, r in zip(got, want):
         assert all(close(a, b, 100.0) for a, b in zip(g[:5], r)), (list(g), r)
 
 
-def test_histories_along_a_simulation_are_the_plugins_states():
+@pytest.mark.parametrize("load_gain", [0.0, 0.3])
+def test_histories_along_a_simulation_are_the_plugins_states(load_gain):
     """Run along a simulation's motor velocity and deflection, one sample per step, the Bouc-Wen
     history reproduces the states the plugin carried, and 2SEP's step does on every step the
-    plugin takes whole: what windowed prediction relies on to start every window with the
-    friction's and the gear's memory of the motion. A step the plugin substeps (a reversal, a
-    slow rotor: ``kernels.twosep_event``) follows the rotor's path within it, which the step's
-    displacement alone does not tell."""
+    plugin takes whole, its levels raised by the recorded gear torque where they depend on the
+    load: what windowed prediction relies on to start every window with the friction's and the
+    gear's memory of the motion. A step the plugin substeps (a reversal, a slow rotor:
+    ``kernels.twosep_event``) follows the rotor's path within it, which the step's displacement
+    alone does not tell."""
     from mjjoint import Chirp, Simulator
     from mjjoint.coupling.layout import SUB, X
-    sim = Simulator(sample_rate=2000.0)  # one sample per 0.5 ms step
+    joint = dataclasses.replace(JointParams(), friction=TwoSEP(load_gain=load_gain))
+    sim = Simulator(sample_rate=2000.0, joint=joint)  # one sample per 0.5 ms step
     tr = sim.run(Chirp().sample(2000.0, 1.0))
     blk = sim.joints[0].block
     assert np.ptp(tr.states[:, X]) > 1e-4 and np.sum(np.diff(np.sign(tr.qd)) != 0) > 5  # loops, reversals
@@ -766,7 +776,7 @@ def test_histories_along_a_simulation_are_the_plugins_states():
     assert 0 < len(whole) < len(tr.q) - 1
     w = np.diff(tr.q) * 2000.0
     for k in whole:
-        f = kernels.friction_history(blk, w[k:k + 1], 1.0 / 2000.0, tr.states[k])
+        f = kernels.friction_history(blk, w[k:k + 1], tr.tau[k:k + 1], 1.0 / 2000.0, tr.states[k])
         assert np.allclose(f[0, :X], tr.states[k + 1, :X], rtol=1e-9, atol=1e-12), k
 
 

@@ -21,9 +21,9 @@ def _costs(**costs):
 def test_the_two_best_screens_that_can_share_a_model_are_paired():
     ref = SimpleNamespace(cost_test=1.0)
     keen = 1.0 - PAIR_SHARE * 0.1 - 1e-3  # just gains PAIR_SHARE of the relative gain
-    screens = _costs(dynamic_friction=0.90, load_dependent_friction=0.91, backlash=keen, input_offset=0.999)
-    # 2SEP and load-dependent friction cannot be in one model: the best goes with the next that can
-    assert not compatible("dynamic_friction", "load_dependent_friction")
+    screens = _costs(dynamic_friction=0.90, sticking_friction=0.91, backlash=keen, input_offset=0.999)
+    # 2SEP and the static map's exact sign cannot be in one model: the best goes with the next that can
+    assert not compatible("dynamic_friction", "sticking_friction")
     assert paired(screens, set(screens), ref, 0.1) == ("dynamic_friction", "backlash")
     # the second may be a screen left on the subset; the first is a finished one
     assert paired(screens, {"backlash"}, ref, 0.1) == ("backlash", "dynamic_friction")

@@ -162,8 +162,8 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     # Motor: -T/N - F + ripple.
     kind = blk[F.kind]
     sm, sl = site_torques(blk, st, q, wq, theta, wtheta) if blk[ANY_SITE] != 0.0 else (0.0, 0.0)
-    # A load-dependent static map's levels grow with the torque transmitted, taken explicitly.
-    dl = blk[F.load_gain] * abs(t) / n if kind == FRICTION_STATIC else 0.0
+    # Load-dependent friction levels grow with the torque transmitted, taken explicitly.
+    dl = blk[F.load_gain] * abs(t) / n
     if kind == FRICTION_STATIC and blk[F.v_eps] <= 0.0 and hj > 0.0:
         fm, fric = exact_static_rotor(blk, st, -t / n + sm, -d_eng / (n * n), wq, hj, dl)
     else:
@@ -211,14 +211,14 @@ def rotor(blk, st, kind, fx, gd, wq, h, hj, dl):
     the rotor, ``gd`` its linear slope. 2SEP: ``twosep_velocity``, or over a step with an event
     (``twosep_event``) the rotor substepped (``twosep_substeps``); either way the torque applied
     is what lands MuJoCo's update on the end velocity found. ``dl``: what the load adds to the
-    static map's levels."""
+    friction levels."""
     if kind == FRICTION_2SEP:
         om = known_other(st, FO, fx - st[Z1])
-        w1, fric = twosep_velocity(blk, st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], fx, gd, om, wq, h, hj)
+        w1, fric = twosep_velocity(blk, st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], fx, gd, om, wq, h, hj, dl)
         st[SUB] = 0.0
         if hj > 0.0 and twosep_event(blk, st[WSIGN], wq, w1):
             w1, z1, z2, omega, qr, ws = twosep_substeps(blk, st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], fx, gd,
-                                                        om, wq, h, hj, SUBSTEPS)
+                                                        om, wq, h, hj, SUBSTEPS, dl)
             st[SUB] = 1.0  # the advance takes the states where the substeps ended
             st[SUB + 1] = z1
             st[SUB + 2] = z2
@@ -245,7 +245,7 @@ def rotor(blk, st, kind, fx, gd, wq, h, hj, dl):
 
 
 @kernel
-def twosep_velocity(blk, z1, z2, omega, qr, wsign, fx, gd, om, wq, h, hj):
+def twosep_velocity(blk, z1, z2, omega, qr, wsign, fx, gd, om, wq, h, hj, dl):
     """(end velocity w1, friction) of the rotor over one step with 2SEP: z1 from the step's start,
     the lag a one-sided damper ``c`` = B|z2| decided on the velocity the step would reach without
     it, linearly implicit with the rotor's other slopes; on a step that reverses the motion z1 is
@@ -258,7 +258,7 @@ def twosep_velocity(blk, z1, z2, omega, qr, wsign, fx, gd, om, wq, h, hj):
     if hj > 0.0 and reverses(w1, wsign):
         kd = 1.0 - gd * hj
         w1, z1r = reversal_step(kd * wq + hj * (om + fm), kd + c * hj, hj, z1, omega, qr, wsign, h,
-                                blk[F.fc], blk[F.k], blk[F.asym])
+                                blk[F.fc] + dl, blk[F.k], blk[F.asym])
         return w1, z1r + c * w1
     if c != 0.0:
         # w1 = wq + hj (other + fm - c w1 + gd (w1 - wq)), solved as one quotient: the damper's
@@ -281,7 +281,7 @@ def twosep_event(blk, wsign, wq, w1):
 
 
 @kernel
-def twosep_substeps(blk, z1, z2, omega, qr, wsign, fx, gd, om, wq, h, hj, n):
+def twosep_substeps(blk, z1, z2, omega, qr, wsign, fx, gd, om, wq, h, hj, n, dl):
     """The rotor and its 2SEP states over a step from ``wq`` in ``n`` substeps, each as a step of
     its own (``twosep_velocity``, ``twosep.twosep_step``), the torques on the rotor but the
     friction frozen at the step's: the other torques ``om`` and the joint's ``fx`` + ``gd`` (w - wq),
@@ -292,10 +292,11 @@ def twosep_substeps(blk, z1, z2, omega, qr, wsign, fx, gd, om, wq, h, hj, n):
     w = wq
     unspent = presliding_unspent(qr, blk[F.k])  # carried from substep to substep
     for _ in range(n):
-        w1, _ = twosep_velocity(blk, z1, z2, omega, qr, wsign, fx + gd * (w - wq), gd, om, w, hs, hjs)
-        z1, z2, omega, qr, wsign, unspent = twosep_step_from(z1, z2, omega, qr, wsign, w1, hs, blk[F.fc], blk[F.fs],
-                                                             blk[F.vs], blk[F.shape], blk[F.sigma], blk[F.k],
-                                                             blk[F.b], blk[F.asym], blk[F.sigma_asym], unspent)
+        w1, _ = twosep_velocity(blk, z1, z2, omega, qr, wsign, fx + gd * (w - wq), gd, om, w, hs, hjs, dl)
+        z1, z2, omega, qr, wsign, unspent = twosep_step_from(z1, z2, omega, qr, wsign, w1, hs, blk[F.fc] + dl,
+                                                             blk[F.fs] + dl, blk[F.vs], blk[F.shape], blk[F.sigma],
+                                                             blk[F.k], blk[F.b], blk[F.asym], blk[F.sigma_asym],
+                                                             unspent)
         w = w1
     return w, z1, z2, omega, qr, wsign
 
@@ -330,8 +331,8 @@ def joint_advance(blk, st, q, wq, theta, wtheta, h):
             st[QR] = st[SUB + 4]
             st[WSIGN] = st[SUB + 5]
             st[SUB] = 0.0
-        else:
-            friction_step(blk, st, wq, h)
+        else:  # at the levels the step's evaluation applied (its transmission torque)
+            friction_step(blk, st, wq, h, blk[F.load_gain] * abs(st[TP]) / blk[T.gear_ratio])
     if blk[H.kind] != 0.0:
         n = blk[T.gear_ratio]
         delta = q / n - theta
@@ -397,10 +398,11 @@ def settled_transmission(blk, states, t, q, wq, theta, wtheta, h, hj, hjl):
 
 
 @kernel
-def friction_step(blk, st, w, h):
-    """Advance the 2SEP states in ``st`` over a step of length h ending at motor velocity w."""
+def friction_step(blk, st, w, h, dl):
+    """Advance the 2SEP states in ``st`` over a step of length h ending at motor velocity w, its
+    levels raised by ``dl`` (load-dependent friction)."""
     z1, z2, om, qr, ws = twosep_step(st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], w, h,
-                                     blk[F.fc], blk[F.fs], blk[F.vs], blk[F.shape], blk[F.sigma],
+                                     blk[F.fc] + dl, blk[F.fs] + dl, blk[F.vs], blk[F.shape], blk[F.sigma],
                                      blk[F.k], blk[F.b], blk[F.asym], blk[F.sigma_asym])
     st[Z1] = z1
     st[Z2] = z2
@@ -410,16 +412,18 @@ def friction_step(blk, st, w, h):
 
 
 @kernel
-def friction_history(blk, w, h, st0):
-    """2SEP states after each sample of a motor velocity sequence (sample period h), from ``st0``.
+def friction_history(blk, w, torque, h, st0):
+    """2SEP states after each sample of a motor velocity sequence (sample period h), from ``st0``,
+    under the gear torque ``torque`` (per sample; it sets load-dependent levels).
 
     The states are the friction's memory of the motion (reversal point, pre-sliding, lag): a
     measured velocity gives them along a recording, as the plugin's advance would have.
     """
     out = np.empty((w.shape[0], st0.shape[0]))
     st = st0.copy()
+    gain = blk[F.load_gain] / blk[T.gear_ratio]
     for i in range(w.shape[0]):
-        friction_step(blk, st, w[i], h)
+        friction_step(blk, st, w[i], h, gain * abs(torque[i]))
         out[i] = st
     return out
 

@@ -70,7 +70,7 @@ def _dynamic(model: Model, v: dict[str, float]) -> Model:
     arm, j = model
     f = _friction(model)
     twosep = TwoSEP(fc=max(f.fc, 1e-6), fs=max(f.fs, f.fc, 1e-6), vs=f.vs, shape=f.shape,
-                    sigma=f.sigma, asym=f.asym, sigma_asym=f.sigma_asym,
+                    sigma=f.sigma, asym=f.asym, sigma_asym=f.sigma_asym, load_gain=f.load_gain,
                     k=v["dynamic_friction.k"], b=v["dynamic_friction.b"])
     return arm, dataclasses.replace(j, friction=twosep)
 
@@ -312,7 +312,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "(Fc + g |T| / N) sgn(w)",
            (Param("load_dependent_friction.gain", 0.05, 0.0, 0.9, log=False),),
            lambda m, v: _set_friction(m, load_gain=v["load_dependent_friction.gain"]),
-           requires=("coulomb_friction",), excludes=("dynamic_friction",),
+           requires=("coulomb_friction",),
            evidence=("coulomb", "sin_theta"), plot="motor_velocity", term="friction",
            read=_friction_read(lambda f: {"load_dependent_friction.gain": f.load_gain},
                                lambda f: getattr(f, "load_gain", 0.0) > 0)),

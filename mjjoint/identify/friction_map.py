@@ -116,7 +116,7 @@ def friction_trace(f: StaticFriction | TwoSEP, w: np.ndarray, h: float) -> np.nd
     if isinstance(f, StaticFriction):
         return _static_trace(w, f.fc, f.fs, f.vs, f.shape, f.sigma, f.asym, f.v_eps, f.sigma_asym)
     blk = pack(dataclasses.replace(JointParams(), friction=f), 0, 0, 0, 0)
-    return _twosep_trace(friction_history(blk, w, h, np.zeros(NSTATE)), w, f.b)
+    return _twosep_trace(friction_history(blk, w, np.zeros(len(w)), h, np.zeros(NSTATE)), w, f.b)
 
 
 @dataclass

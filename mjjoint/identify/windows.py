@@ -649,12 +649,17 @@ class Predictor:
             # chatter removed (REVERSAL_BAND), not guessed from the velocity's sign: the step
             # velocity is the path's displacement per sample.
             fs = term_states("friction")
+            # The gear torque sets load-dependent levels: measured, else the spring's on the
+            # measured deflection (its stiffness then part of the key), else none (no gear side).
+            spring = m.tau is None and m.delta is not None and ji.params.friction.load_gain > 0.0
+            k1 = ji.block[TRANSMISSION.k1:TRANSMISSION.k1 + 1] if spring else ji.block[:0]
+            torque = m.tau if m.tau is not None else (k1[0] * m.delta if spring else np.zeros(len(m.t)))
 
             def friction() -> np.ndarray:
                 return np.concatenate([
-                    friction_history(ji.block, np.diff(m.q_path[a:b], prepend=m.q_path[a]) * m.rate, 1.0 / m.rate,
-                                     s0)[:, fs] for (a, b), s0 in zip(m.segments, start)])
-            states[:, fs] = self._history((ji.block[term_slots("friction")], start[:, fs]), friction)[i0]
+                    friction_history(ji.block, np.diff(m.q_path[a:b], prepend=m.q_path[a]) * m.rate, torque[a:b],
+                                     1.0 / m.rate, s0)[:, fs] for (a, b), s0 in zip(m.segments, start)])
+            states[:, fs] = self._history((ji.block[term_slots("friction")], k1, start[:, fs]), friction)[i0]
         if ji.params.term("hysteresis") is not None and m.delta is not None:
             # Bouc-Wen x along the measured deflection (rate independent: the path fixes it); the
             # loading-branch guess can be off by the whole loop for the entire window.

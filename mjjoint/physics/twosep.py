@@ -176,7 +176,7 @@ def twosep_step_from(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k
 
 @dataclass(frozen=True)
 class TwoSEP:
-    """Parameters of the 2SEP model: the seven of the chapter plus an optional asymmetry.
+    """Parameters of the 2SEP model: the seven of the chapter, optional asymmetries and load dependence.
 
     Motor side: torques in N·m, velocities in rad/s, K in 1/rad, B in N·m/rad.
     Defaults describe a 400 W BLDC with a harmonic-drive wave generator as in the chapter's
@@ -193,6 +193,10 @@ class TwoSEP:
     b: float = 50.0       # attraction gain B [N·m/rad]: lag time constant |S|/(B|w|) ~ 2 ms at 1 rad/s
     asym: float = 0.0     # direction-dependent shift of Fc and Fs [N·m]
     sigma_asym: float = 0.0  # viscous slope sigma (1 + sigma_asym sgn w); as StaticFriction.sigma_asym
+    # Both levels grow by load_gain |T| / N, T the torque the gear transmits, as
+    # StaticFriction.load_gain; the pre-sliding saturates at the raised level. The methods below
+    # give the map at T = 0.
+    load_gain: float = 0.0
 
     def __post_init__(self) -> None:
         check("fc", self.fc, 0.0, lo_open=True)
@@ -205,6 +209,7 @@ class TwoSEP:
         lim = min(self.fc, self.fs)  # both directions keep positive friction levels
         check("asym", self.asym, -lim, lim, lo_open=True, hi_open=True)
         check("sigma_asym", self.sigma_asym, -1.0, 1.0, lo_open=True, hi_open=True)
+        check("load_gain", self.load_gain, 0.0, 1.0, hi_open=True)
 
     def steady_state(self, w: float) -> float:
         """S(w) of Eqs. 14-15, the chapter's steady-state map."""
