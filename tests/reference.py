@@ -237,7 +237,7 @@ class JointState:
     w_sign: float = 0.0
     x: float = 0.0
     pending: tuple | None = None  # 2SEP states where a substepped step ends (joint_forces)
-    load: float = 0.0  # what the step's transmission torque added to 2SEP's levels (joint_forces)
+    load: float = 0.0  # what the last evaluation's transmission torque added to 2SEP's levels
 
     def as_list(self) -> list[float]:
         return [self.z1, self.z2, self.omega, self.q_r, self.w_sign, self.x]
@@ -321,6 +321,8 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
         motor = explicit + damping * (w1 - wq) - fric
         return motor, _link(p, t, wtheta, hjl, other_l)
     if isinstance(f, TwoSEP):
+        if f.load_gain != 0.0:
+            presliding_level(f, s, s.load, load)
         if math.isnan(other):
             other = -(explicit - s.z1)
         w1, fric = twosep_velocity(f, s.z1, s.z2, s.omega, s.q_r, s.w_sign, explicit, damping, other, wq, h, hj,
@@ -347,6 +349,15 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
     w1 = wq + hj * (other + motor) / (1.0 - g * hj)
     motor = motor + g * (w1 - wq)
     return motor, _link(p, t, wtheta, hjl, other_l)
+
+
+def presliding_level(f: TwoSEP, s: JointState, load_from, load_to):
+    """The pre-sliding curve (z1 and Omega) scaled from levels raised by ``load_from`` to
+    ``load_to``, as the Coulomb level in the motion's direction scales."""
+    base = f.fc + f.asym * s.w_sign
+    r = (base + load_to) / (base + load_from)
+    s.z1 *= r
+    s.omega *= r
 
 
 def twosep_velocity(f: TwoSEP, z1, z2, omega, q_r, w_sign, explicit, g, other, wq, h, hj, load=0.0):

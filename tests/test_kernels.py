@@ -468,7 +468,7 @@ def test_catch_up_advances_once_per_new_time(p, s, m, h, hj, hjl):
         elif at == at:
             assert st_arr[FO] == 0.3 and st_arr[FOT] == 7.0 and st_arr[FOL] == -2.0
         else:
-            assert np.isnan(st_arr[FO]) and np.isnan(st_arr[FOT]) and np.isnan(st_arr[FOL])
+            assert np.isnan(st_arr[FO]) and np.isnan(st_arr[FOT]) and np.isnan(st_arr[FOL]) and np.isnan(st_arr[TP])
         again = st_arr.copy()
         kernels.joint_catch_up(blk, again, q, wq, theta, wtheta, t, h, hj, hjl)
         np.testing.assert_array_equal(again, st_arr)  # a second evaluation at t changes nothing
@@ -735,19 +735,23 @@ def test_hysteresis_history(delta, x0, backlash, mu):
 
 
 @SETTINGS
-@given(w=st.lists(velocity, min_size=1, max_size=30), h=finite(1e-5, 2e-3), p=twoseps(), torque=finite(-50.0, 50.0))
-def test_friction_history(w, h, p, torque):
+@given(wt=st.lists(st.tuples(velocity, finite(-50.0, 50.0)), min_size=1, max_size=30), h=finite(1e-5, 2e-3),
+       p=twoseps())
+def test_friction_history(wt, h, p):
+    w, torque = (np.array(x) for x in zip(*wt))
     joint = JointParams(friction=p)
     blk = pack(joint, 0, 0, 1, 1)
-    load = p.load_gain * abs(torque) / joint.transmission.gear_ratio  # both levels raised by g |T| / N
-    s = [0.01, 0.0, 0.0, 0.0, 0.0]
+    load = p.load_gain * np.abs(torque) / joint.transmission.gear_ratio  # both levels raised by g |T| / N
+    s = ref.JointState(z1=0.01)
     want = []
-    for wi in w:
-        s = list(ref.twosep_step(*s, wi, h, p.fc + load, p.fs + load, p.vs, p.shape, p.sigma, p.k, p.b, p.asym,
-                                 p.sigma_asym))
-        want.append(s)
-    got = kernels.friction_history(blk, np.asarray(w), np.full(len(w), torque), h,
-                                   plugin_state(ref.JointState(z1=0.01)))
+    for i, wi in enumerate(w):
+        if i > 0 and p.load_gain != 0.0:
+            ref.presliding_level(p, s, load[i - 1], load[i])
+        s.z1, s.z2, s.omega, s.q_r, s.w_sign = ref.twosep_step(
+            s.z1, s.z2, s.omega, s.q_r, s.w_sign, wi, h, p.fc + load[i], p.fs + load[i], p.vs, p.shape, p.sigma, p.k,
+            p.b, p.asym, p.sigma_asym)
+        want.append(s.as_list()[:5])
+    got = kernels.friction_history(blk, w, torque, h, plugin_state(ref.JointState(z1=0.01)))
     assert got.shape == (len(w), NSTATE)
     for g, r in zip(got, want):
         assert all(close(a, b, 100.0) for a, b in zip(g[:5], r)), (list(g), r)
@@ -775,9 +779,11 @@ def test_histories_along_a_simulation_are_the_plugins_states(load_gain):
     whole = np.flatnonzero(tr.states[:-1, SUB] == 0.0)
     assert 0 < len(whole) < len(tr.q) - 1
     w = np.diff(tr.q) * 2000.0
+    level = load_gain * np.abs(tr.tau) / joint.transmission.gear_ratio
     for k in whole:
-        f = kernels.friction_history(blk, w[k:k + 1], tr.tau[k:k + 1], 1.0 / 2000.0, tr.states[k])
-        assert np.allclose(f[0, :X], tr.states[k + 1, :X], rtol=1e-9, atol=1e-12), k
+        f = kernels.friction_history(blk, w[k:k + 1], tr.tau[k:k + 1], 1.0 / 2000.0, tr.states[k])[0]
+        kernels.presliding_level(blk, f, level[k], level[k + 1])  # each sample's states at its own levels
+        assert np.allclose(f[:X], tr.states[k + 1, :X], rtol=1e-9, atol=1e-12), k
 
 
 @SETTINGS

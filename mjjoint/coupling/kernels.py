@@ -213,6 +213,8 @@ def rotor(blk, st, kind, fx, gd, wq, h, hj, dl):
     is what lands MuJoCo's update on the end velocity found. ``dl``: what the load adds to the
     friction levels."""
     if kind == FRICTION_2SEP:
+        if blk[F.load_gain] != 0.0 and st[TP] == st[TP]:  # states advanced at the last evaluation's level
+            presliding_level(blk, st, blk[F.load_gain] * abs(st[TP]) / blk[T.gear_ratio], dl)
         om = known_other(st, FO, fx - st[Z1])
         w1, fric = twosep_velocity(blk, st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], fx, gd, om, wq, h, hj, dl)
         st[SUB] = 0.0
@@ -242,6 +244,18 @@ def rotor(blk, st, kind, fx, gd, wq, h, hj, dl):
     om = known_other(st, FO, fm)
     dwm = implicit_dof(fm, gm, om, hj)
     return fm + gm * dwm, f0 + s0 * dwm
+
+
+@kernel
+def presliding_level(blk, st, dl_from, dl_to):
+    """2SEP's pre-sliding in ``st`` carried from levels raised by ``dl_from`` to ``dl_to``
+    (load-dependent friction): z1 and Omega scaled by the ratio of the Coulomb levels in the
+    motion's direction, so the whole pre-sliding curve follows the load (a contact pressed
+    harder holds more at the same displacement) and a saturated z1 sits at the new level."""
+    base = blk[F.fc] + blk[F.asym] * st[WSIGN]
+    r = (base + dl_to) / (base + dl_from)
+    st[Z1] *= r
+    st[OMEGA] *= r
 
 
 @kernel
@@ -349,7 +363,8 @@ def joint_catch_up(blk, st, q, wq, theta, wtheta, t, h, hj, hjl):
 
     A step also tells the other torques on the motor dof, its velocity change since the last
     evaluation less what the joint applied then (J dw / h - f), and likewise those on the link
-    dof and on the deflection (J_rel d rate / h + T). Fresh states leave them unknown.
+    dof and on the deflection (J_rel d rate / h + T). Fresh states leave them unknown, and
+    the friction levels their states were advanced at with them (``presliding_level``).
 
     The plugin does this at the start of compute rather than in a MuJoCo advance callback:
     same states, same forces, one callback a step instead of two (docs/design.md). So after
@@ -371,6 +386,7 @@ def joint_catch_up(blk, st, q, wq, theta, wtheta, t, h, hj, hjl):
         st[FOT] = np.nan
         st[FOL] = np.nan
         st[FOL2] = np.nan
+        st[TP] = np.nan  # fresh states are taken at the levels of their first evaluation
     st[AT] = t
 
 
@@ -423,6 +439,8 @@ def friction_history(blk, w, torque, h, st0):
     st = st0.copy()
     gain = blk[F.load_gain] / blk[T.gear_ratio]
     for i in range(w.shape[0]):
+        if i > 0 and gain != 0.0:
+            presliding_level(blk, st, gain * abs(torque[i - 1]), gain * abs(torque[i]))
         friction_step(blk, st, w[i], h, gain * abs(torque[i]))
         out[i] = st
     return out

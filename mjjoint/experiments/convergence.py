@@ -110,6 +110,8 @@ def cases() -> list[Case]:
         Case("shipped arm, step 0.1 N m", shipped_arm, JointParams(), step, "tau"),
         Case("shipped arm, 1.5 ms impulse (Sec. 4)", shipped_arm, JointParams(), impulse, "tau"),
         Case("shipped arm, 2SEP, 3 s down-chirp", shipped_arm, JointParams(), chirp, "tau", events=True),
+        Case("shipped arm, 2SEP with load-dependent levels (g 0.3), 3 s down-chirp", shipped_arm,
+             JointParams(friction=TwoSEP(load_gain=0.3)), chirp, "tau", events=True),
         Case("shipped arm, B = 0, 3 s down-chirp", shipped_arm, JointParams(friction=TwoSEP(b=0.0)), chirp, "tau"),
         Case("shipped arm, static map, 3 s down-chirp", shipped_arm, JointParams(friction=StaticFriction()), chirp,
              "tau"),
