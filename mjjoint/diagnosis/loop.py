@@ -524,7 +524,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 with phases("stand-in guard"):
                     refusal, freer = stand_in(predictor, current, refit, step, steps + [s for s in added if s is not step],
                                               options, floor_cost, say,
-                                              [r for r in revisions if r.kind == "stand-in"])
+                                              [r for r in revisions if r.kind == "stand-in" and not r.rebased])
                 if refusal is not None:
                     say(f"  {step.effect} is not named: {refusal.reason}")
                     if len(added) == 2:
@@ -546,6 +546,16 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 # A single step's freer refit is the same structure fitted further; a pair's is
                 # the model with the other member, not the one this round extends.
                 if len(added) == 1 and freer is not None and freer.cost_test < current.cost_test:
+                    if freer.cost_test <= current.cost_test * (1.0 - options.min_gain) and \
+                            not any(r.rebased and r.effect == added[0].effect for r in revisions):
+                        # The refusal judged the effect against a base stalled far from its
+                        # optimum, which the effect's fit only helped to leave: once more from there.
+                        revisions[-1] = dataclasses.replace(revisions[-1], rebased=True)
+                        say(f"  the model without {added[0].effect}, refitted, predicts the held-out windows "
+                            f"{100 * (1 - freer.cost_test / current.cost_test):.1f} % better than the base it was "
+                            f"judged against: {added[0].effect} screened again from there")
+                        search = dataclasses.replace(options, candidates=tuple(
+                            e for e in allowed if e not in refused(revisions)))
                     current = history[-1] = freer
                 continue
         steps += added
@@ -593,6 +603,10 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     bounds = stand_ins(current)
     if explained:
         unresolved = {}
+    # A refusal against a stalled base stands where the screens from the better one did not
+    # decide otherwise (the effect named, or refused again).
+    decided = {s.effect for s in steps} | set(refused(revisions))
+    revisions = [r for r in revisions if not (r.rebased and r.effect in decided)]
     verdict = _verdict(steps, initial, current, floor, explained, final_where, rejected, bounds, unresolved, revisions,
                        signs)
     say(f"spent: {phases.line()}")
@@ -602,8 +616,9 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
 
 
 def refused(revisions) -> tuple[str, ...]:
-    """The effects refused as stand-ins (``revise.stand_in``): not screened again."""
-    return tuple(r.effect for r in revisions if r.kind == "stand-in")
+    """The effects refused as stand-ins (``revise.stand_in``): not screened again, but those
+    refused against a stalled base (``Revision.rebased``), once."""
+    return tuple(r.effect for r in revisions if r.kind == "stand-in" and not r.rebased)
 
 
 def with_held_noted(result: FitResult, names) -> FitResult:

@@ -74,6 +74,9 @@ class Revision:
     reason: str
     by: str = ""              # a swap: the rival that replaced it
     beside: str = ""          # a stand-in refused in a pair: the other member, in the model it was judged in
+    # A stand-in refused against a base that the model without it, refitted from its values, beat
+    # by the acceptance rule's gain: screened once more from that base (``loop.refused``).
+    rebased: bool = False
 
     def as_dict(self) -> dict:
         return {"kind": self.kind, "effect": self.effect, "by": self.by, "beside": self.beside,
