@@ -430,3 +430,18 @@ def test_a_rival_that_predicts_as_well_in_a_named_effects_place_is_a_tie(monkeyp
             assert "predicts as well" in done[0].reason
         else:
             assert after is current and done == []
+
+
+def test_a_refusal_against_a_stalled_base_is_screened_again_once_and_stands_only_undecided():
+    """A stand-in refused against a base that the model without it, refitted, beat by the
+    acceptance rule's gain (``Revision.rebased``) is screened again; its refusal is reported only
+    where that screen neither named it nor refused it again."""
+    from mjjoint.diagnosis.loop import refused, standing
+    stalled = Revision("stand-in", "dynamic_friction", 0.21, 0.002, "its gain is the optimum ...", rebased=True)
+    other = Revision("stand-in", "stribeck_friction", 0.01, 0.009, "on its bounds")
+    assert refused([stalled, other]) == ("stribeck_friction",)
+    assert standing([stalled, other], ["dynamic_friction"]) == [other]          # named from the better base
+    assert standing([stalled, other], []) == [stalled, other]                   # its screen passed nothing
+    again = dataclasses.replace(stalled, rebased=False, cost_before=0.00065, cost_after=0.0007)
+    assert refused([stalled, again]) == ("dynamic_friction",)
+    assert standing([stalled, again], []) == [again]                            # refused again: the new one

@@ -28,8 +28,9 @@ Each round:
    ``restarted``; then under the robust loss over
    windows, kept if that lowers the held-out cost: ``DiagnoseOptions.robust_refit``), the
    search revised (``diagnosis.revise``: an addition that is a stand-in is refused, named
-   effects are swapped for rivals or removed when the acceptance rule says so), and the next
-   round starts;
+   effects are swapped for rivals or removed when the acceptance rule says so; a refusal whose
+   refit without the effect beats the base by ``min_gain`` screens it once more from there), and
+   the next round starts;
 5. when no candidate passes, the final structure's parameters are estimated once more under the
    robust loss over windows (``identify.fit``, ``robust=True``; ``DiagnoseOptions.robust_final``),
    kept only if that lowers the held-out cost; unless they already are such an estimate (the
@@ -603,16 +604,21 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     bounds = stand_ins(current)
     if explained:
         unresolved = {}
-    # A refusal against a stalled base stands where the screens from the better one did not
-    # decide otherwise (the effect named, or refused again).
-    decided = {s.effect for s in steps} | set(refused(revisions))
-    revisions = [r for r in revisions if not (r.rebased and r.effect in decided)]
+    revisions = standing(revisions, [s.effect for s in steps])
     verdict = _verdict(steps, initial, current, floor, explained, final_where, rejected, bounds, unresolved, revisions,
                        signs)
     say(f"spent: {phases.line()}")
     return Diagnosis(steps, initial, current, final_where, verdict,
                      predictor.rollouts - roll0, time.perf_counter() - t_start, history,
                      floor, explained, bounds, unstable, unresolved, revisions, phases.as_dict(), signs)
+
+
+def standing(revisions, named) -> list:
+    """The ``revisions`` a diagnosis reports: a refusal against a stalled base
+    (``Revision.rebased``) only where the screens from the better base did not decide otherwise
+    (the effect among the ``named``, or refused again)."""
+    decided = set(named) | set(refused(revisions))
+    return [r for r in revisions if not (r.rebased and r.effect in decided)]
 
 
 def refused(revisions) -> tuple[str, ...]:
