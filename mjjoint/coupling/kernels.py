@@ -162,8 +162,7 @@ def joint_evaluate(blk, st, q, wq, theta, wtheta, h, hj, hjl):
     # Motor: -T/N - F + ripple.
     kind = blk[F.kind]
     sm, sl = site_torques(blk, st, q, wq, theta, wtheta) if blk[ANY_SITE] != 0.0 else (0.0, 0.0)
-    # Load-dependent friction levels grow with the torque transmitted, taken explicitly.
-    dl = blk[F.load_gain] * abs(t) / n
+    dl = load_level(blk, t)  # taken explicitly
     if kind == FRICTION_STATIC and blk[F.v_eps] <= 0.0 and hj > 0.0:
         fm, fric = exact_static_rotor(blk, st, -t / n + sm, -d_eng / (n * n), wq, hj, dl)
     else:
@@ -214,7 +213,7 @@ def rotor(blk, st, kind, fx, gd, wq, h, hj, dl):
     friction levels."""
     if kind == FRICTION_2SEP:
         if blk[F.load_gain] != 0.0 and st[TP] == st[TP]:  # states advanced at the last evaluation's level
-            presliding_level(blk, st, blk[F.load_gain] * abs(st[TP]) / blk[T.gear_ratio], dl)
+            presliding_level(blk, st, load_level(blk, st[TP]), dl)
         om = known_other(st, FO, fx - st[Z1])
         w1, fric = twosep_velocity(blk, st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], fx, gd, om, wq, h, hj, dl)
         st[SUB] = 0.0
@@ -244,6 +243,13 @@ def rotor(blk, st, kind, fx, gd, wq, h, hj, dl):
     om = known_other(st, FO, fm)
     dwm = implicit_dof(fm, gm, om, hj)
     return fm + gm * dwm, f0 + s0 * dwm
+
+
+@kernel
+def load_level(blk, t):
+    """What the transmission torque ``t`` adds to both friction levels (load-dependent friction):
+    load_gain |T| / N."""
+    return blk[F.load_gain] * abs(t) / blk[T.gear_ratio]
 
 
 @kernel
@@ -346,7 +352,7 @@ def joint_advance(blk, st, q, wq, theta, wtheta, h):
             st[WSIGN] = st[SUB + 5]
             st[SUB] = 0.0
         else:  # at the levels the step's evaluation applied (its transmission torque)
-            friction_step(blk, st, wq, h, blk[F.load_gain] * abs(st[TP]) / blk[T.gear_ratio])
+            friction_step(blk, st, wq, h, load_level(blk, st[TP]))
     if blk[H.kind] != 0.0:
         n = blk[T.gear_ratio]
         delta = q / n - theta
@@ -437,11 +443,10 @@ def friction_history(blk, w, torque, h, st0):
     """
     out = np.empty((w.shape[0], st0.shape[0]))
     st = st0.copy()
-    gain = blk[F.load_gain] / blk[T.gear_ratio]
     for i in range(w.shape[0]):
-        if i > 0 and gain != 0.0:
-            presliding_level(blk, st, gain * abs(torque[i - 1]), gain * abs(torque[i]))
-        friction_step(blk, st, w[i], h, gain * abs(torque[i]))
+        if i > 0 and blk[F.load_gain] != 0.0:
+            presliding_level(blk, st, load_level(blk, torque[i - 1]), load_level(blk, torque[i]))
+        friction_step(blk, st, w[i], h, load_level(blk, torque[i]))
         out[i] = st
     return out
 

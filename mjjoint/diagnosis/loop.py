@@ -538,6 +538,15 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 say(f"  {refusal.effect} refused as a stand-in in the pair: {step.effect} kept alone (held-out cost "
                     f"-{100 * step.gain:.1f} %, paired p = {step.consistency['p']:.3g})")
                 added, refusals = [step], [refusal]
+            elif refusals and len(added) == 1 and freer is not None and \
+                    freer.cost_test <= current.cost_test * (1.0 - options.min_gain) and \
+                    not any(r.rebased and r.effect == added[0].effect for r in revisions):
+                # The refusal judged the effect against a base stalled far from its optimum,
+                # which the effect's fit only helped to leave: once more from there.
+                refusals = [dataclasses.replace(refusals[0], rebased=True)]
+                say(f"  the model without {added[0].effect}, refitted, predicts the held-out windows "
+                    f"{100 * (1 - freer.cost_test / current.cost_test):.1f} % better than the base it was "
+                    f"judged against: {added[0].effect} screened again from there")
             if refusals:
                 revisions += refusals
                 allowed = options.candidates or default_candidates(current.structure, signs)
@@ -547,16 +556,6 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 # A single step's freer refit is the same structure fitted further; a pair's is
                 # the model with the other member, not the one this round extends.
                 if len(added) == 1 and freer is not None and freer.cost_test < current.cost_test:
-                    if freer.cost_test <= current.cost_test * (1.0 - options.min_gain) and \
-                            not any(r.rebased and r.effect == added[0].effect for r in revisions):
-                        # The refusal judged the effect against a base stalled far from its
-                        # optimum, which the effect's fit only helped to leave: once more from there.
-                        revisions[-1] = dataclasses.replace(revisions[-1], rebased=True)
-                        say(f"  the model without {added[0].effect}, refitted, predicts the held-out windows "
-                            f"{100 * (1 - freer.cost_test / current.cost_test):.1f} % better than the base it was "
-                            f"judged against: {added[0].effect} screened again from there")
-                        search = dataclasses.replace(options, candidates=tuple(
-                            e for e in allowed if e not in refused(revisions)))
                     current = history[-1] = freer
                 continue
         steps += added
