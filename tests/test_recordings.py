@@ -7,6 +7,7 @@ import io
 import json
 import re
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -649,6 +650,7 @@ BAD_CSV: dict[str, tuple[str | bytes, list[str]]] = {
     "empty field": (csv_text(HEADER, rows_with(4, 3, "")), ["line 6", "column 'theta'", "'' is not a number"]),
     "nan": (csv_text(HEADER, rows_with(3, 3, "nan")), ["'theta'", "nan", "sample 3 (line 5)", "--allow-gaps"]),
     "inf": (csv_text(HEADER, rows_with(7, 1, "-inf")), ["'u'", "-inf", "sample 7"]),
+    "an angle infinite throughout": (csv_text(HEADER, [r[:2] + ["inf"] + r[3:] for r in valid_rows()]), ["'q'", "inf", "sample 0"]),
     # the same time with other values (a row repeated whole is dropped: test_repeated_rows_are_dropped)
     "duplicated time": (csv_text(HEADER, time_rows([0.001 * i for i in range(9)]) + [[repr(0.008), 1.0, 0.0, 0.0, 0.0]]
                                  + time_rows([0.01, 0.011])), ["duplicated", "sample 9", "t=0.008"]),
@@ -693,7 +695,8 @@ def test_bad_csv_is_rejected_with_one_line_and_untouched(tmp_path: Path, case: s
     path = tmp_path / "bad.csv"
     path.write_bytes(content.encode() if isinstance(content, str) else content)
     before = (path.read_bytes(), path.stat().st_mtime_ns)
-    with pytest.raises(RecordingError) as err:
+    with pytest.raises(RecordingError) as err, warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # the one line is all the user sees
         read_recording(path)
     message = str(err.value)
     assert "\n" not in message and "\r" not in message
@@ -719,7 +722,8 @@ def test_corrupt_container_is_rejected(tmp_path: Path, suffix: str) -> None:
     path = tmp_path / f"bad{suffix}"
     path.write_bytes(b"PK\x03\x04 definitely not a real archive" * 10)
     before = (path.read_bytes(), path.stat().st_mtime_ns)
-    with pytest.raises(RecordingError) as err:
+    with pytest.raises(RecordingError) as err, warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # the one line is all the user sees
         read_recording(path)
     assert "\n" not in str(err.value) and "not a readable" in str(err.value)
     assert (path.read_bytes(), path.stat().st_mtime_ns) == before

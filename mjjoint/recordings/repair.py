@@ -56,8 +56,8 @@ def unwrap_angles(signals: Mapping[str, np.ndarray]) -> tuple[dict[str, np.ndarr
     """(signals with the wrapped angles unwrapped, how many turns were added back per angle)."""
     out, turns = dict(signals), {}
     for name, x in signals.items():
-        if split_joint(name)[0] not in ANGLES or len(x) < 2:
-            continue
+        if split_joint(name)[0] not in ANGLES or len(x) < 2 or not np.isfinite(x).all():
+            continue  # a non-finite sample is the checks' to report, before any arithmetic on it
         d = np.diff(x)
         big = np.flatnonzero(np.abs(d) > 0.5 * TURN)
         if big.size == 0 or np.median(np.abs(d)) > MAX_ANGLE_STEP:
