@@ -689,21 +689,27 @@ def test_time_in_milliseconds_reads_with_the_scale_the_message_names(tmp_path: P
     assert np.allclose(np.diff(rec.t), 1e-3)
 
 
+def refusal(path: Path) -> str:
+    """The message ``read_recording`` refuses ``path`` with: no warning printed before it (the
+    one line is all the user sees) and the file left as it was."""
+    before = (path.read_bytes(), path.stat().st_mtime_ns)
+    with pytest.raises(RecordingError) as err, warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        read_recording(path)
+    assert (path.read_bytes(), path.stat().st_mtime_ns) == before
+    return str(err.value)
+
+
 @pytest.mark.parametrize("case", list(BAD_CSV))
 def test_bad_csv_is_rejected_with_one_line_and_untouched(tmp_path: Path, case: str) -> None:
     content, expected = BAD_CSV[case]
     path = tmp_path / "bad.csv"
     path.write_bytes(content.encode() if isinstance(content, str) else content)
-    before = (path.read_bytes(), path.stat().st_mtime_ns)
-    with pytest.raises(RecordingError) as err, warnings.catch_warnings():
-        warnings.simplefilter("error", RuntimeWarning)  # the one line is all the user sees
-        read_recording(path)
-    message = str(err.value)
+    message = refusal(path)
     assert "\n" not in message and "\r" not in message
     assert message.startswith(f"{path}: ")
     for part in expected:
         assert part in message, (part, message)
-    assert (path.read_bytes(), path.stat().st_mtime_ns) == before
 
 
 def test_missing_file_and_unknown_suffix(tmp_path: Path) -> None:
@@ -721,12 +727,8 @@ def test_missing_file_and_unknown_suffix(tmp_path: Path) -> None:
 def test_corrupt_container_is_rejected(tmp_path: Path, suffix: str) -> None:
     path = tmp_path / f"bad{suffix}"
     path.write_bytes(b"PK\x03\x04 definitely not a real archive" * 10)
-    before = (path.read_bytes(), path.stat().st_mtime_ns)
-    with pytest.raises(RecordingError) as err, warnings.catch_warnings():
-        warnings.simplefilter("error", RuntimeWarning)  # the one line is all the user sees
-        read_recording(path)
-    assert "\n" not in str(err.value) and "not a readable" in str(err.value)
-    assert (path.read_bytes(), path.stat().st_mtime_ns) == before
+    message = refusal(path)
+    assert "\n" not in message and "not a readable" in message
 
 
 @pytest.mark.parametrize(
