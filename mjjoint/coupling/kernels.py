@@ -443,10 +443,12 @@ def friction_history(blk, w, torque, h, st0):
     """
     out = np.empty((w.shape[0], st0.shape[0]))
     st = st0.copy()
+    level = 0.0
     for i in range(w.shape[0]):
+        last, level = level, load_level(blk, torque[i])
         if i > 0 and blk[F.load_gain] != 0.0:
-            presliding_level(blk, st, load_level(blk, torque[i - 1]), load_level(blk, torque[i]))
-        friction_step(blk, st, w[i], h, load_level(blk, torque[i]))
+            presliding_level(blk, st, last, level)
+        friction_step(blk, st, w[i], h, level)
         out[i] = st
     return out
 
