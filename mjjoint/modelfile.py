@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sys
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -75,6 +76,8 @@ def from_section(cls: type, values: dict[str, Any], where: str, **objects: Any):
     keys and the dataclass checks ranges; a message about one field gets the key path
     ``where.`` prefixed.
     """
+    if not isinstance(values, dict):
+        raise ValueError(f"{where} must be a section of key = value pairs, not {brief(values)}")
     defaults = {f.name: f.default for f in dataclasses.fields(cls)}
     values = {k: _typed(f"{where}.{k}", v, defaults[k]) if k in defaults else v for k, v in values.items()}
     try:
@@ -87,12 +90,23 @@ def from_section(cls: type, values: dict[str, Any], where: str, **objects: Any):
         raise ValueError(f"{where}.{missing[0]} is required") from None
 
 
+def brief(value: Any, most: int = 40) -> str:
+    """``repr(value)``, cut to ``most`` characters for a one-line message."""
+    try:
+        text = repr(value)
+    except ValueError:  # an integer of more digits than Python converts to text
+        return "an integer of thousands of digits"
+    return text if len(text) <= most else text[:most - 3] + "..."
+
+
 def _typed(name: str, value: Any, default: Any) -> Any:
     """``value`` if its type fits the field's default (an int is a valid float), else an error."""
     if isinstance(default, bool):
         ok, want = isinstance(value, bool), "true or false"
     elif isinstance(default, (int, float)):
         ok, want = isinstance(value, (int, float)) and not isinstance(value, bool), "a number"
+        if ok and abs(value) > sys.float_info.max:  # an integer literal no float can hold
+            raise ValueError(f"{name}={brief(value)} is beyond the largest number ({sys.float_info.max:.4g})")
         if ok and isinstance(default, float):
             value = float(value)
     elif isinstance(default, str) or default is dataclasses.MISSING:
@@ -140,7 +154,7 @@ def parse_model(data: Any) -> ModelFile:
         raise ValueError(f"unknown section {unknown[0]!r} (allowed: {', '.join(SECTION_NAMES)})")
     for name, body in data.items():
         if not isinstance(body, dict):
-            raise ValueError(f"{name} must be a section of key = value pairs, not {body!r}")
+            raise ValueError(f"{name} must be a section of key = value pairs, not {brief(body)}")
     # A section absent from the file leaves its term as the defaults have it; a nested term
     # (the transmission's hysteresis) is read first and handed to the term that holds it.
     d = JointParams()

@@ -12,6 +12,7 @@ in the one-line ``ValueError`` messages (``gear_ratio`` or ``--gear-ratio``).
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,12 +25,13 @@ from .identify.effects import FRICTION_V_EPS, SEED_EFFECTS, base_params, check_e
 from .identify.from_model import stated, structure_from_model
 from .identify.initial import ARM_SLOPE_STEP, SLOPE_STEP, Estimate, estimate
 from .identify.structure import Structure
-from .identify.windows import Measured, Predictor, WindowDesign
+from .identify.windows import Measured, Predictor, WindowDesign, stable
 from .manipulator import arm_model, arm_predictor, load_note
 from .modelfile import ModelFile
 from .params import fitting_timestep
 from .recordings import MultiRecording, Recording, read_recording, reading_notes
-from .recordings.consistency import dead_sensor_problem, gear_sides_problem, motion_problem, torque_sign_problem
+from .recordings.consistency import (dead_sensor_problem, gear_sides_problem, motion_problem, scale_problem,
+                                     torque_sign_problem)
 
 PLANTS = {"arm": "", "linear": "slide", "rotary": "hinge"}  # plant -> direct drive joint type ("": the arm)
 
@@ -83,6 +85,23 @@ class Inputs:
     arm: SerialArmFile | str | Path | None = None
 
 
+def check_inputs(inputs: Inputs, names: Mapping[str, str] | None = None) -> None:
+    """The checks of ``inputs`` that need no recording and no model file (one-line ValueError
+    naming the input as ``names`` calls it): a fleet's rows are checked so before any work."""
+    say = _Names(names or {})
+    for key in ("gear_ratio", "k_m"):
+        value = getattr(inputs, key)
+        for v in value if isinstance(value, tuple) else (value,):
+            if v is not None and not 0 < v < math.inf:
+                raise ValueError(f"{say(key)} {v:g} must be positive and finite")
+    if inputs.joints is not None and (not inputs.joints or min(inputs.joints) < 1):
+        raise ValueError(f"{say('joints')}: joints are numbered from 1, got {inputs.joints!r}")
+    if inputs.plant not in PLANTS:
+        raise ValueError(f"{say('plant')} {inputs.plant!r} is not one of {', '.join(PLANTS)}")
+    if inputs.base is not None and inputs.model is None:  # a model file's effects are read with it
+        _effects(inputs.base, say)
+
+
 def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[Recording | str | Path],
                  inputs: Inputs = Inputs(), names: Mapping[str, str] | None = None) -> Problem | JointProblems:
     """The problem of ``recording`` under ``inputs``.
@@ -104,15 +123,7 @@ def load_problem(recording: Recording | MultiRecording | str | Path | Sequence[R
         ValueError: in one line naming the input, for anything that does not fit.
     """
     say = _Names(names or {})
-    for key in ("gear_ratio", "k_m"):
-        value = getattr(inputs, key)
-        for v in value if isinstance(value, tuple) else (value,):
-            if v is not None and not v > 0:
-                raise ValueError(f"{say(key)} {v:g} must be positive")
-    if inputs.joints is not None and (not inputs.joints or min(inputs.joints) < 1):
-        raise ValueError(f"{say('joints')}: joints are numbered from 1, got {inputs.joints!r}")
-    if inputs.plant not in PLANTS:
-        raise ValueError(f"{say('plant')} {inputs.plant!r} is not one of {', '.join(PLANTS)}")
+    check_inputs(inputs, names)
     if inputs.plant != "arm":
         return _drive_problem(recording, inputs, say)
     model = read_model_file(inputs.model) if isinstance(inputs.model, (str, Path)) else inputs.model
@@ -159,6 +170,22 @@ def _started(base: Structure, measured: Measured, start: Estimate, keep: tuple[s
         started.model_params()
     except ValueError as err:  # a fit from there would score nothing but unstable predictions
         raise ValueError(f"the model started from the recording's estimates is one the simulator refuses: {err}") from None
+    return _stable_start(started, stepped, keep)
+
+
+def _stable_start(started: Structure, nominal: Structure, keep: tuple[str, ...]) -> Structure:
+    """``started``, or where its values are too stiff for its step (a regression misled by an
+    excitation it cannot read: a rotor inertia a decade below what moves), ``started`` with the
+    first of the recording's values that does so set back to the ``nominal`` one: a fit from an
+    unstable start scores nothing but refused predictions, and cannot move from there. The
+    user's values (``keep``) stay; a start no single value makes unstable is left to the fit."""
+    if stable(started):
+        return started
+    for name, value in started.values.items():
+        if name not in keep and value != nominal.values.get(name, value):
+            trial = started.with_values({name: nominal.values[name]})
+            if stable(trial):
+                return trial
     return started
 
 
@@ -222,7 +249,7 @@ def _check_conventions(measured: Measured, source: str) -> None:
     """Refuse, in one line, a recording whose motor does not move, whose sensor recorded nothing,
     or whose angles or torques are not read as the model takes them (``recordings.consistency``)."""
     m = measured
-    problem = motion_problem(m.q)
+    problem = scale_problem("q", m.q) or scale_problem("u", m.u) or motion_problem(m.q)
     if problem is None and m.theta is not None:
         problem = dead_sensor_problem("theta", m.theta) or gear_sides_problem(m.q, m.theta, m.gear_ratio)
     if problem is None and m.tau is not None:

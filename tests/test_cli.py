@@ -14,7 +14,7 @@ import pytest
 from mjjoint.assets import ASSETS_DIR, ArmSpec
 import mjjoint.cli.memory as memory
 import mjjoint.viz.rerun_log as rerun_log
-from mjjoint.cli import main
+from mjjoint.cli import COMMANDS, main
 from mjjoint.cli.chunked import rollout_chunked
 from mjjoint.excitation import Chirp, Step
 from mjjoint.sim import Simulator, simulate
@@ -124,6 +124,11 @@ BAD_ARGS = [
     (lambda p: ["simulate", "--rrd", str(p / "missing" / "x.rrd")], "--rrd"),
     (lambda p: ["simulate", "--out", str(p / "missing" / "sim")], "--out"),
     (lambda p: ["simulate", "--rate", "3000", "--csv", str(p / "x.csv")], "sample_rate=3000"),
+    # outputs checked before any simulation: one file each, each in a format its writer writes
+    (lambda p: ["simulate", "--csv", str(p / "x.csv"), "--rrd", str(p / "x.csv")], "must name different files"),
+    (lambda p: ["simulate", "--csv", str(p / "x.txt")], "--csv writes .csv, not '.txt'"),
+    (lambda p: ["simulate", "--plot", str(p / "x.txt")], "--plot writes"),
+    (lambda p: ["simulate", "--rrd", str(p / "x")], "--rrd writes .rrd, not 'a name without a suffix'"),
     # a flexible rod far too stiff for the step: MuJoCo's own joint springs diverge
     (lambda p: ["simulate", "--model", str(_written(p / "stiff.toml", "[arm]\nrod_ei = 1e7\n")), "--duration", "0.5",
                 "--csv", str(p / "x.csv")], "diverged"),
@@ -226,6 +231,15 @@ def test_help_exits_0(capsys):
     assert main(["simulate", "--help"]) == 0
     out = capsys.readouterr().out
     assert "--excitation" in out and "KEY=VALUE" in out and "f_start=30.0" in out
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_command_prints_its_help(command, capsys):
+    """argparse formats each help text with %: a literal percent sign in one broke the command's
+    --help with a format error."""
+    assert main([command, "--help"]) == 0
+    out, err = capsys.readouterr()
+    assert out.startswith(f"usage: mjjoint {command}") and not err
 
 
 def test_module_entry_point_prints_no_traceback(tmp_path):

@@ -8,7 +8,8 @@ import pytest
 
 from mjjoint.excitation import Multisine
 from mjjoint.recordings import Recording, write_recording
-from mjjoint.recordings.consistency import dead_sensor_problem, gear_sides_problem, motion_problem, torque_sign_problem
+from mjjoint.recordings.consistency import (dead_sensor_problem, gear_sides_problem, motion_problem, scale_problem,
+                                           torque_sign_problem)
 from mjjoint.sim import simulate
 
 N = 160.0  # the shipped arm's gear
@@ -70,6 +71,21 @@ def test_a_joint_at_rest_or_a_sensor_that_recorded_nothing_is_refused(trace):
     assert "recorded nothing" in dead_sensor_problem("tau", np.zeros(trace.q.size))
     assert "--plant rotary" in dead_sensor_problem("theta", np.full(trace.q.size, 0.3))
     assert dead_sensor_problem("theta", trace.theta) is None
+
+
+def test_a_signal_in_another_unit_than_read_is_refused(trace, tmp_path, capsys):
+    """Every signal scaled by 1e-200 (a unit mistaken by 200 decades) divided by zero in the
+    estimator's bounds (a traceback); at 1e-160 it fitted, printing a noise floor of 130 digits."""
+    assert "check its unit (--scales q=FACTOR)" in scale_problem("q", 1e-200 * trace.q)
+    assert "--scales u=FACTOR" in scale_problem("u", 1e-12 * trace.u)
+    assert scale_problem("q", trace.q) is None and scale_problem("u", np.zeros(trace.u.size)) is None
+    from mjjoint.cli import main
+    path = tmp_path / "rec.csv"
+    trace.to_csv(path)
+    assert main(["fit", str(path), "--gear-ratio", str(N), "--scales", "q=1e-200,theta=1e-200,tau=1e-200,u=1e-200",
+                 "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "q never exceeds" in err[0] and not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("signal", ["q", "theta", "tau"])

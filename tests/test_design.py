@@ -227,6 +227,31 @@ def test_rivals_from_a_diagnosis_are_its_named_effect_and_first_indistinguishabl
     assert base.values["coulomb_friction.fc"] == 0.04 and "input_offset.offset" not in base.values
 
 
+@pytest.mark.parametrize("text, message", [
+    ("[1]", "'list' object has no attribute"),
+    ('{"steps": [{"effect": "input_offset", "indistinguishable_from": ["viscous_asymmetry"]}]}', "no 'final_model'"),
+    ('{"steps": ["x"]}', "'str' object has no attribute"),
+    ("{", "Expecting property name"),
+])
+def test_a_diagnosis_json_that_is_not_one_is_refused_in_one_line(tmp_path, text, message):
+    from mjjoint.assets import ArmSpec
+    from mjjoint.cli.design import rivals_from_diagnosis
+    from mjjoint.cli.errors import CliError
+    (tmp_path / "diagnosis.json").write_text(text)
+    with pytest.raises(CliError, match="not a diagnosis.json as 'mjjoint diagnose' writes it") as info:
+        rivals_from_diagnosis(tmp_path, ArmSpec(segments=0), 160.0)
+    assert message in str(info.value) and str(tmp_path) in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_diagnosis_without_a_tie_has_nothing_to_separate(tmp_path):
+    from mjjoint.assets import ArmSpec
+    from mjjoint.cli.design import rivals_from_diagnosis
+    from mjjoint.cli.errors import CliError
+    (tmp_path / "diagnosis.json").write_text('{"steps": [{"effect": "backlash"}], "final_model": {}}')
+    with pytest.raises(CliError, match="no step names an indistinguishable rival; nothing to separate"):
+        rivals_from_diagnosis(tmp_path, ArmSpec(segments=0), 160.0)
+
+
 @pytest.mark.slow
 def test_benchmark_names_the_true_effect_in_nine_tenths_of_tied_draws_within_limits():
     """The acceptance benchmark (``scripts/bench_design.py --seeds 2 --starts 2 --refine 3

@@ -221,6 +221,15 @@ def test_a_manifest_row_replaces_the_command_line_options(fleet, tmp_path, monke
     ({"robots.toml": '[[recording]]\npath = "x/a.csv"\n[[recording]]\npath = "y/a.mat"\n'}, "would both report into a/"),
     ({"robots.toml": '[[recording]]\npath = "a.csv"\nname = "../up"\n'}, "cannot be a folder name"),
     ({"empty/x.txt": ""}, "holds no recording"),
+    # a value the row's own run would refuse, refused before any recording is diagnosed
+    ({"robots.csv": "recording,gear_ratio\na.csv,-1\n"}, "recording a: --gear-ratio -1 must be positive and finite"),
+    ({"robots.csv": "recording,gear_ratio\na.csv,nan\n"}, "--gear-ratio nan must be positive"),
+    ({"robots.toml": '[[recording]]\npath = "a.csv"\nbase = "bogus"\n'}, "recording a: --base: unknown effect 'bogus'"),
+    ({"robots.toml": "recording = [1, 2]\n"}, "a recording's entry is a table of keys, not '1'"),
+    ({"robots.toml": '[[recording]]\npath = ["a.csv"]\n'}, "'path' and 'name' are text"),
+    ({"robots.toml": '[[recording]]\npath = "a.csv"\nname = "a\\u0000b"\n'}, "cannot be a folder name"),
+    ({"robots.csv": "recording,gear_ratio\na.csv,160,3\n"}, "line 2: more cells than the header names"),
+    ({"robots.csv": "recording,gear_ratio,gear_ratio\na.csv,160,100\n"}, "names each column once"),
 ])
 def test_bad_fleets_are_refused_in_one_line_before_any_work(tmp_path, capsys, files, error):
     for name, text in files.items():
@@ -237,6 +246,7 @@ def test_fleet_options_and_folders_are_checked(fleet, tmp_path, capsys):
     rec = str(fleet["recs"] / "delayed.csv")
     cases = [
         (["diagnose", rec, "--gear-ratio", "160", "--workers", "2"], "--workers: for a folder, glob or manifest"),
+        (["diagnose", rec, "--gear-ratio", "160", "--workers", "0"], "--workers: for a folder, glob or manifest"),
         (["diagnose", str(fleet["recs"]), "--gear-ratio", "160", "--workers", "0"], "--workers 0 must be at least 1"),
         (["diagnose", str(fleet["recs"]), "--gear-ratio", "160", "--workers", "2", "--scheduler", "tcp://x:1"],
          "with --scheduler the cluster's workers do the work"),

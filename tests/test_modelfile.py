@@ -104,6 +104,8 @@ BAD = [
     ("syntax.toml", "[arm\n", "line 1"),
     ("syntax.yaml", "arm: [1, 2\n", "line 2"),
     ("model.json", "{}", "unsupported model file type '.json'"),
+    ("bigint.toml", "[arm]\nrod_length = 1" + "0" * 400 + "\n", "arm.rod_length=1000"),
+    ("bigrate.yaml", "simulation:\n  sample_rate: 1" + "0" * 400 + "\n", "beyond the largest number"),
 ]
 
 

@@ -310,6 +310,20 @@ def test_multi_joint_model_file_gives_each_joint_its_sections(tmp_path):
         load_serial_arm_file(bad)
 
 
+@pytest.mark.parametrize("text, message", [
+    ("[[joint]]\narm = 3\n", r"joint\[1\]\.arm must be a section"),
+    ("[[joint]]\narm = [1, 2]\n", r"joint\[1\]\.arm must be a section"),
+    ("world = 3\n[[joint]]\n", "world must be a section"),
+    ("simulation = 'x'\n[[joint]]\n", "simulation must be a section"),
+])
+def test_a_multi_joint_section_that_is_not_one_fails_in_one_line(tmp_path, text, message):
+    path = tmp_path / "arm.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message) as info:
+        load_serial_arm_file(path)
+    assert "\n" not in str(info.value) and str(info.value).startswith(str(path))
+
+
 def test_the_documented_model_file_is_the_shipped_planar_arm(tmp_path):
     block = re.search(r"```toml\n(.*?)```", DOCS.read_text(), re.DOTALL).group(1)
     path = tmp_path / "doc.toml"

@@ -658,6 +658,9 @@ BAD_CSV: dict[str, tuple[str | bytes, list[str]]] = {
     "empty file": ("", ["empty file"]),
     "blank lines only": ("\n  \n\n", ["empty file"]),
     "header only": (HEADER + "\n", ["header but no data rows"]),
+    "a joint number no joint has": (csv_text("t" + "".join(f",{s}{'9' * 20}" for s in ("u", "q", "theta", "tau")),
+                                             valid_rows()),
+                                    ["missing required column(s) u, q, theta"]),
     "no header": (csv_text("0.0,1,2,3,4", valid_rows()), ["no header"]),
     "too few samples": (csv_text(HEADER, valid_rows(5)), ["only 5 samples", "at least 10"]),
     "theta in counts": (csv_text(HEADER, rows_with(12, 3, 40960.0)), ["'theta'", "40960", "sample 12", "--scales theta=deg"]),
@@ -710,6 +713,29 @@ def test_bad_csv_is_rejected_with_one_line_and_untouched(tmp_path: Path, case: s
     assert message.startswith(f"{path}: ")
     for part in expected:
         assert part in message, (part, message)
+
+
+BAD_JSON = {
+    "an integer beyond every float": ('[{"t": 0, "u": 0, "q": 1' + "0" * 400 + ', "theta": 0}'
+                                      + "".join(f', {{"t": {k / 1000}, "u": 0, "q": 0, "theta": 0}}' for k in range(1, 20))
+                                      + "]", "column 'q' has inf at sample 0"),
+    "nested past the reader's depth": ("[" * 100_000 + "]" * 100_000, "nested deeper than a recording is"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_JSON))
+def test_bad_json_is_rejected_with_one_line(tmp_path: Path, case: str) -> None:
+    content, expected = BAD_JSON[case]
+    path = tmp_path / "bad.json"
+    path.write_text(content)
+    message = refusal(path)
+    assert "\n" not in message and message.startswith(f"{path}: ") and expected in message
+
+
+def test_a_bad_json_lines_record_is_named_by_its_line(tmp_path: Path) -> None:
+    path = tmp_path / "log.jsonl"
+    path.write_text("".join(f'{{"t": {k / 1000}, "u": 0, "q": 0, "theta": 0}}\n' for k in range(500)) + "{x\n")
+    assert "line 501: Expecting property name" in refusal(path)
 
 
 def test_missing_file_and_unknown_suffix(tmp_path: Path) -> None:

@@ -117,7 +117,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help=f"parameter draws per rival for its prediction spread (default {opt.draws})")
     s.add_argument("--push", type=int, default=opt.push, metavar="K",
                    help=f"evaluations spent searching on from the default chirp where nothing found beats it by "
-                        f"{opt.min_gain:.0%} (default {opt.push})")
+                        f"{100 * opt.min_gain:.0f} %% (default {opt.push})")  # %% : argparse formats help
     s.add_argument("--rehearse", type=int, default=opt.rehearse, metavar="K",
                    help=f"best inputs whose decision is rehearsed on simulated recordings (default {opt.rehearse})")
     s.add_argument("--max-iter", type=int, default=15, metavar="K", help="LM iterations of each fit (default 15)")
@@ -131,16 +131,22 @@ def rivals_from_diagnosis(folder: Path, nominal, gear_ratio: float) -> tuple[Str
     path = folder / "diagnosis.json"
     if not path.is_file():
         raise CliError(f"--diagnosis {folder}: no diagnosis.json there (give a 'mjjoint diagnose' output folder)")
-    data = json.loads(path.read_text(encoding="utf-8"))
-    steps = [s for s in data.get("steps", []) if s.get("indistinguishable_from")]
-    if not steps:
-        raise CliError(f"--diagnosis {folder}: no step names an indistinguishable rival; nothing to separate")
-    named, rival = steps[0]["effect"], steps[0]["indistinguishable_from"][0]
-    final = data["final_model"]
-    effects = tuple(e for e in final["effects"] if e != named)
-    own = {p.name for p in EFFECTS[named].params}
-    values = {k: v for k, v in final["parameters"].items() if k not in own}
-    return Structure.create(effects, nominal, gear_ratio, values, final.get("settings")), (named, rival)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        steps = [s for s in data.get("steps", []) if s.get("indistinguishable_from")]
+        if not steps:
+            raise CliError(f"--diagnosis {folder}: no step names an indistinguishable rival; nothing to separate")
+        named, rival = steps[0]["effect"], steps[0]["indistinguishable_from"][0]
+        final = data["final_model"]
+        effects = tuple(e for e in final["effects"] if e != named)
+        own = {p.name for p in EFFECTS[named].params}
+        values = {k: v for k, v in final["parameters"].items() if k not in own}
+        return Structure.create(effects, nominal, gear_ratio, values, final.get("settings")), (named, rival)
+    except CliError:
+        raise
+    except (ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:  # not what diagnose writes
+        what = f"no {exc}" if isinstance(exc, KeyError) else " ".join(str(exc).split())[:80]
+        raise CliError(f"--diagnosis {path}: not a diagnosis.json as 'mjjoint diagnose' writes it ({what})") from None
 
 
 def limits_from_args(args: argparse.Namespace):

@@ -18,9 +18,10 @@ from pathlib import Path
 from ..fleet import engines
 from ..fleet.inputs import Entry, resolve
 from ..fleet.task import FIELDS, Task, finished, input_hash, rows
+from ..problem import check_inputs
 from ..report.output import check_folder
 from .errors import CliError
-from .options import PLANTS, joint_numbers, numbers
+from .options import NAMES, PLANTS, inputs_from_args, joint_numbers, numbers
 
 EXIT_FAILED = 1
 FLEET_MARK = ".mjjoint-fleet"  # an (empty) file naming DIR a fleet folder, so a rerun may write into it
@@ -39,7 +40,8 @@ def add_fleet_options(p: argparse.ArgumentParser) -> None:
 
 def check_single(args: argparse.Namespace) -> None:
     """Fleet options with one recording are a mistake worth naming."""
-    given = [f"--{k}" for k in ("workers", "scheduler", "force") if getattr(args, k) not in (None, False)]
+    given = [f"--{k}" for k in ("workers", "scheduler", "force") if getattr(args, k) is not None and getattr(args, k)
+             is not False]  # identity: --workers 0 equals False
     if given:
         raise CliError(f"{', '.join(given)}: for a folder, glob or manifest of recordings; "
                        f"{' '.join(map(str, args.recording))} is not a fleet")
@@ -78,6 +80,10 @@ def _arguments(args: argparse.Namespace, entry: Entry) -> dict:
     arguments["recording"] = entry.path.absolute()
     if arguments["model"] is not None:
         arguments["model"] = Path(arguments["model"]).absolute()
+    try:  # what the row's own run would refuse before reading its recording, refused now
+        check_inputs(inputs_from_args(argparse.Namespace(**arguments)), NAMES)
+    except (ValueError, argparse.ArgumentTypeError) as exc:
+        raise CliError(f"recording {entry.name}: {exc}") from None
     return arguments
 
 

@@ -8,6 +8,7 @@ the options in its messages.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -120,8 +121,8 @@ def effect_list(text: str, option: str = "--base") -> tuple[str, ...]:
 
 def inputs_from_args(args: argparse.Namespace) -> Inputs:
     """The problem's inputs from the command line (one-line errors naming the option)."""
-    if not args.window_length > 0:
-        raise CliError(f"--window-length {args.window_length:g} must be positive")
+    if not 0 < args.window_length < math.inf:
+        raise CliError(f"--window-length {args.window_length:g} must be positive and finite")
     if not 0 <= args.lead_in <= MAX_LEAD:
         raise CliError(f"--lead-in {args.lead_in:g} must lie in [0, {MAX_LEAD:g}] s")
     return Inputs(gear_ratio=args.gear_ratio, k_m=args.k_m,

@@ -140,13 +140,27 @@ def output_paths(args: argparse.Namespace) -> dict[str, Path]:
     elif args.spawn and args.rrd is None:  # the viewer opens a finished file
         chosen["rrd"], option["rrd"] = args.out / "trace.rrd", "--out"
     out = {kind: path for kind, path in chosen.items() if path is not None}
+    if len({path.resolve() for path in out.values()}) < len(out):
+        raise CliError(f"{', '.join(option[k] for k in out)} must name different files (each is written whole)")
     for kind, path in out.items():
         if path.is_dir():
             raise CliError(f"{path}: is a directory, not a file")
+        if path.suffix.lower() not in _suffixes(kind):
+            raise CliError(f"{path}: {option[kind]} writes {' or '.join(sorted(_suffixes(kind)))}, not "
+                           f"{path.suffix or 'a name without a suffix'!r}")
         check_destination(path, option[kind])
         if path.exists() and not os.access(path, os.W_OK):
             raise CliError(f"{path}: permission denied")
     return out
+
+
+def _suffixes(kind: str) -> set[str]:
+    """The file names an output of ``kind`` can be written as: a recording as .csv, the viewer's
+    log as .rrd, a plot in any format matplotlib writes."""
+    if kind == "plot":
+        from matplotlib.backend_bases import FigureCanvasBase  # matplotlib only when a plot is asked for
+        return {f".{ext}" for ext in FigureCanvasBase.get_supported_filetypes()}
+    return {f".{kind}"}
 
 
 def check_memory(sim: Simulator, rate: float, duration: float) -> None:

@@ -31,7 +31,7 @@ class Entry:
     options: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        if not self.name or self.name in (".", "..") or "/" in self.name or "\\" in self.name:
+        if not self.name or self.name in (".", "..") or set(self.name) & set("/\\\0"):
             raise ValueError(f"recording name {self.name!r} cannot be a folder name; give a plain name")
 
 
@@ -89,20 +89,32 @@ def _manifest(path: Path) -> list[Entry]:
     else:
         with open(path, newline="", encoding="utf-8") as f:
             reader = csv.DictReader(f, skipinitialspace=True)
+            header = [h.strip() for h in reader.fieldnames or ()]
+            if "" in header or len(set(header)) < len(header):
+                raise ValueError(f"{path}: the header names each column once, none empty (found {header})")
             # Empty cells leave the command line's value: a column may be set for some rows only.
-            rows = [(f"{path} line {reader.line_num}", {k.strip(): v.strip() for k, v in row.items()
-                                                         if k is not None and v is not None and v.strip()})
-                    for row in reader]
+            rows = [(f"{path} line {reader.line_num}", _csv_row(path, reader.line_num, row)) for row in reader]
     return [_entry(path.parent, where, row, NAME_KEYS[suffix]) for where, row in rows]
 
 
-def _entry(base: Path, where: str, row: dict, key: str) -> Entry:
+def _csv_row(path: Path, line: int, row: dict) -> dict:
+    """A manifest line's filled cells; more cells than the header names is an error, not ignored."""
+    if None in row:
+        raise ValueError(f"{path} line {line}: more cells than the header names")
+    return {k.strip(): v.strip() for k, v in row.items() if v is not None and v.strip()}
+
+
+def _entry(base: Path, where: str, row, key: str) -> Entry:
+    if not isinstance(row, dict):
+        raise ValueError(f"{where}: a recording's entry is a table of keys, not {str(row)[:40]!r}")
     allowed = (key, "name", *OPTIONS)
     unknown = [k for k in row if k not in allowed]
     if unknown:
         raise ValueError(f"{where}: unknown key {unknown[0]!r} (allowed: {', '.join(allowed)})")
     if key not in row:
         raise ValueError(f"{where}: no {key!r} (the recording's file)")
+    if not isinstance(row[key], str) or not isinstance(row.get("name", ""), str):
+        raise ValueError(f"{where}: {key!r} and 'name' are text (a file, a folder name)")
     file = base / str(row[key])
     options = {k: _text(v) for k, v in row.items() if k in OPTIONS}
     for k in PATH_OPTIONS:

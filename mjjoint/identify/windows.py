@@ -1082,6 +1082,11 @@ def _hidden_coordinates(model, ji) -> tuple[np.ndarray, np.ndarray] | None:
     return np.array(qadr), np.array(vadr)
 
 
+def stable(structure) -> bool:
+    """Whether a structure's model is stable at its step (``assets.stability``)."""
+    return _stable(_compile(*structure.model_params()))
+
+
 def _stable(model) -> bool:
     """Stability of a compiled (memoised) model, computed once per model."""
     key = id(model)

@@ -18,7 +18,7 @@ OPTIONAL = frozenset({"tau"})
 DEG = math.pi / 180
 ALLOWED = "t, u, q, theta, tau (or per joint: u1, q1, theta1, tau1, u2, ...)"
 
-_PER_JOINT = re.compile(r"(u|q|theta|tau)([1-9][0-9]*)")
+_PER_JOINT = re.compile(r"(u|q|theta|tau)([1-9][0-9]{0,3})")  # joints 1-9999: a longer number is no joint
 
 
 def split_joint(name: str) -> tuple[str, int | None]:

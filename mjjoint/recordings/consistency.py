@@ -54,6 +54,20 @@ def dead_sensor_problem(signal: str, x: np.ndarray) -> str | None:
     return f"{signal} is {float(x[0]):g} throughout while the motor moves: {_DEAD[signal]}"
 
 
+# [rad, m, N m, A, ...] below every encoder's count and every drive's command: a recording whose
+# angle or input never reaches it was written in another unit than the one read
+TINY = 1e-9
+
+
+def scale_problem(signal: str, x: np.ndarray) -> str | None:
+    """What is wrong where ``signal`` never reaches TINY in magnitude but is not zero, else None."""
+    peak = float(np.max(np.abs(x))) if x.size else 0.0
+    if not 0 < peak < TINY:
+        return None
+    return (f"{signal} never exceeds {peak:.3g} in magnitude, below any sensor's or drive's resolution: "
+            f"check its unit (--scales {signal}=FACTOR)")
+
+
 def motion_problem(q: np.ndarray) -> str | None:
     """What is wrong where the motor angle does not move beyond a few encoder counts, else None."""
     span = float(np.ptp(q))

@@ -28,8 +28,9 @@ def read_json_table(path: Path) -> ArrayTable:
     """The signal arrays of a JSON or JSON Lines file (module doc)."""
     try:
         text = path.read_text(encoding="utf-8-sig")
-        data = ([json.loads(line) for line in text.splitlines() if line.strip()] if path.suffix.lower() == ".jsonl"
-                else json.loads(text))
+        data = _lines(text) if path.suffix.lower() == ".jsonl" else json.loads(text)
+    except RecursionError:
+        raise RecordingError(f"{path}: not a readable JSON file (nested deeper than a recording is)") from None
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise RecordingError(f"{path}: not a readable JSON file ({type(exc).__name__}: {exc})") from None
     arrays: dict[str, np.ndarray] = {}
@@ -54,8 +55,28 @@ def _collect(node, path: str, arrays: dict[str, np.ndarray]) -> None:
         column = _numbers(node)
         if column is not None:
             arrays[path] = column
-    elif isinstance(node, (bool, int, float)) and path and math.isfinite(node):
-        arrays[path] = np.array([float(node)])
+    elif isinstance(node, (bool, int, float)) and path and math.isfinite(_float(node)):
+        arrays[path] = np.array([_float(node)])
+
+
+def _lines(text: str) -> list:
+    """The records of a JSON Lines text; an error names the file's line, not the record's."""
+    out = []
+    for k, line in enumerate(text.splitlines(), start=1):
+        if line.strip():
+            try:
+                out.append(json.loads(line))
+            except json.JSONDecodeError as exc:
+                raise ValueError(f"line {k}: {exc.msg} at column {exc.colno}") from None
+    return out
+
+
+def _float(v: bool | int | float) -> float:
+    """``float(v)``; an integer beyond every float is infinite (the checks refuse it by name)."""
+    try:
+        return float(v)
+    except OverflowError:
+        return math.inf if v > 0 else -math.inf
 
 
 def _join(path: str, key: str) -> str:
@@ -77,7 +98,7 @@ def _number(v) -> float | None:
     if v is None:
         return math.nan
     if isinstance(v, (bool, int, float)):
-        return float(v)
+        return _float(v)
     return None
 
 
