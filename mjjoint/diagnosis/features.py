@@ -78,7 +78,7 @@ def operating_conditions(
     motor torque u and optionally transmission torque tau.
 
     Keys: qd [rad/s]; qdd [rad/s^2]; q and q_mod = q mod 2pi [rad] (for position-periodic effects);
-    reversal_proximity [s]; u, and tau when given, passed through. With theta (None for a
+    reversal_proximity [s]; u, and tau when given, passed through; ud, u's rate. With theta (None for a
     direct drive, which has no output side) also: thetad [rad/s]; accel (link acceleration);
     delta = q/N - theta, abs_delta [rad]; delta_d [rad/s]; sin_theta, cos_theta; theta [rad].
     """
@@ -105,6 +105,7 @@ def operating_conditions(
         "q_mod": np.mod(q, 2.0 * np.pi),
         "reversal_proximity": reversal_proximity(t, qd),
         "u": arrays["u"],
+        "ud": smooth(arrays["u"], 1),
     }
     if theta is not None:
         theta = arrays["theta"]

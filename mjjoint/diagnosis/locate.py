@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Iterator, Mapping
+from typing import Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 from scipy.fft import irfft, next_fast_len, rfft
@@ -269,17 +269,48 @@ def _periodic(name: str, coordinate: str, angle: np.ndarray, first: int = 1) -> 
     )
 
 
-def _friction_periodic(q: np.ndarray, qd: np.ndarray) -> _Condition:
+def _longest(q: np.ndarray, periods: float) -> tuple[float, float]:
+    """(the fewest cycles per revolution that repeat ``periods`` times over q's recorded span, at
+    least MIN_CYCLES; a quarter cycle over that span, the step a scan of real periods takes)."""
+    span = float(np.ptp(q)) if q.size else 0.0
+    if not span > 0:
+        return 1.0, 1.0
+    return max(MIN_CYCLES, periods * 2.0 * math.pi / span), math.pi / (2.0 * span)
+
+
+def real_periodic(name: str, coordinate: str, angle: np.ndarray, periods: float, max_steps: int) -> _Condition:
+    """Periodic in an angle at a real k, scanned from the longest period that repeats ``periods``
+    times over its span to MAX_HARMONIC cycles per revolution in steps of a quarter cycle over the
+    span (coarser where that would take more than ``max_steps``), the best refined about the best
+    scanned: a torque of the rotor's own angle need not repeat a whole number of times a
+    revolution, and scored at the nearest whole k it would explain little over a long travel."""
+    first, fine = _longest(angle, periods)
+    step = max(fine, (MAX_HARMONIC - first) / max_steps)
+    count = max(1, int((MAX_HARMONIC - first) / step) + 1)
+
+    def evaluate(R: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        scores = harmonic_scores(angle, first, step, count, R)
+        return scores.max(axis=0), {"k": round(first + step * int(np.argmax(scores[:, 0])), 3)}
+
+    def refine(r: np.ndarray, params: dict[str, float]) -> dict[str, float]:
+        return {"k_real": _real_k(angle, r, max(params["k"] - step, first), params["k"] + step)}
+
+    return _Condition(
+        name, evaluate,
+        lambda s, p: f"periodic in {coordinate} at {p['k_real']:g} cycles per revolution ({_explains(s)})",
+        refine=refine,
+    )
+
+
+def friction_periodic(q: np.ndarray, qd: np.ndarray, periods: float = PERIODS_IN_SPAN) -> _Condition:
     """A friction level periodic in the motor angle, sign(qd) [sin(k q), cos(k q)]: seen in a
     residual of the torque or the deflection, which such a level moves with the sign of the
     motion, and not by ``_periodic`` (its sign flips with every reversal). k is scanned from the
-    longest period that repeats PERIODS_IN_SPAN times over q's recorded span (at least
-    MIN_CYCLES) in steps of a quarter cycle over that span up to one cycle per revolution, then
-    at whole cycles to MAX_HARMONIC; the best real k is refined about the best scanned one."""
+    longest period that repeats ``periods`` times over q's recorded span (at least MIN_CYCLES)
+    in steps of a quarter cycle over that span up to one cycle per revolution, then at whole
+    cycles to MAX_HARMONIC; the best real k is refined about the best scanned one."""
     sign = np.sign(qd)
-    span = float(np.ptp(q)) if q.size else 0.0
-    fine = math.pi / (2.0 * span) if span > 0 else 1.0   # a quarter cycle over the span
-    first = max(MIN_CYCLES, PERIODS_IN_SPAN * 2.0 * math.pi / span) if span > 0 else 1.0
+    first, fine = _longest(q, periods)
     below = max(0, int(math.ceil((1.0 - first) / fine)))
     ks = np.concatenate([first + fine * np.arange(below), np.arange(1.0, MAX_HARMONIC + 1)])
 
@@ -484,7 +515,7 @@ def _conditions(
         out.append(_regression("viscous", qd, "proportional to qd, viscous-like"))
         out.append(_stribeck(qd))
         if "q" in c:
-            out.append(_friction_periodic(c["q"], qd))
+            out.append(friction_periodic(c["q"], qd))
     if "delta_d" in c:
         out.append(_hysteresis(c["delta_d"]))
     if dt is not None and measured is not None:
@@ -508,12 +539,13 @@ def condition_scores(
     n_permutations: int = 19,
     min_effect: float = 0.05,
     seed: int = 0,
+    built: Sequence[_Condition] | None = None,
 ) -> list[ConditionScore]:
     """Scores of how much residual r = measured - simulated concentrates under each condition,
     highest first (scale and noise threshold: see the module docstring).
 
     `conditions` holds per-sample arrays as from `features.operating_conditions`; conditions
-    whose arrays are missing are skipped. Resonance and lag need the time base `t` and the
+    whose arrays are missing are skipped. `built`: a caller's own conditions, scored instead. Resonance and lag need the time base `t` and the
     `measured` signal; without `t` the null also permutes sample by sample, as block length is
     a time. A residual without variance concentrates nowhere: the list is empty.
     """
@@ -534,7 +566,7 @@ def condition_scores(
     rng = np.random.default_rng(seed)
     block = 1 if dt is None else max(1, round(NULL_BLOCK_S / dt))
     permute = {"block": lambda: _block_permutation(r0, block, rng), "sample": lambda: rng.permutation(r0)}
-    conds = _conditions(conditions, dt, measured)
+    conds = _conditions(conditions, dt, measured) if built is None else list(built)
     per_batch = max(NULL_BATCH, NULL_BATCH_SAMPLES // r.size)
     values: dict[str, list[np.ndarray]] = {c.name: [] for c in conds}
     found: dict[str, dict[str, float]] = {}

@@ -125,6 +125,8 @@ from .clock import Phases, ScreenClock
 from .features import operating_conditions, reversal_proximity
 from .floor import EXPLAINED_RATIO, WINDOWING_TRUST, Floor, judged, noise_floor
 from .gear_law import ENERGY_RETURNED, law_energy, law_ratio, law_site
+from .balance import balance_location
+from .balance import SIGNAL as BALANCE
 from .locate import REVERSAL_WINDOW_S, locate, located_conditions
 
 MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
@@ -269,7 +271,11 @@ def residual_location(predictor: Predictor, structure: Structure, seed: int = 0)
     cond = operating_conditions(m.t, m.q, m.theta, m.u, m.gear_ratio, m.tau)
     cond = {k: np.asarray(v)[span] for k, v in cond.items()}
     t = m.t[span]
-    return locate(t, meas, sim, cond, seed=seed).as_dict()
+    where = locate(t, meas, sim, cond, seed=seed).as_dict()
+    balance = balance_location(t, cond, seed=seed)
+    if balance is not None:  # a torque on the rotor as a function of its angle, however filtered
+        where["signals"][balance.signal] = balance.as_dict()
+    return where
 
 
 BUNDLE = "+"  # joins an effect to the prerequisites screened with it: "linear_stiffness+backlash"
@@ -447,9 +453,11 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
         if generic:
             say(f"  no catalogued effect explains the located residual: screening the generic forms it "
                 f"points to ({', '.join(generic)})")
+            # as the catalogue was last screened: with every parameter free where the model missed
+            # far above its floor, so the stand-ins the base fitted for the form do not hold it back
             g_ref, g_screened, g_rest, g_above = _screen(predictor, current, where,
                                                          dataclasses.replace(options, candidates=generic), say, clock,
-                                                         unstable, stepped)
+                                                         unstable, stepped, free_all=escalation is not None)
             with phases("acceptance tests"):
                 g_choice = _decide(predictor, g_ref, g_screened, options, floor_cost)
             if not g_choice.failed:
@@ -738,9 +746,13 @@ def mismatch(final: FitResult, floor: Floor, where: dict) -> str:
     conds = [c["description"] for c in loc.get("conditions", []) if c.get("significant")]
     spans = loc.get("windows", [])[:3]
     at = ", ".join(f"{a:.2f}-{b:.2f} s" for a, b, _ in spans)
+    rotor = [c["description"] for c in where.get("signals", {}).get(BALANCE, {}).get("conditions", [])
+             if c.get("significant")]
     return (signals + (f"; {over[0]}'s residual concentrates {'; '.join(conds)}" if conds else
                        f"; {over[0]}'s residual concentrates under no condition looked at")
-            + (f"; largest at {at}" if at else ""))
+            + (f"; largest at {at}" if at else "")
+            + (f"; the rotor's torque balance (the input less a rigid rotor's, under the recorded gear torque) "
+               f"is {'; '.join(rotor)}" if rotor else ""))
 
 
 TIE_SHARE = 0.9  # a candidate explaining >= 90 % of the best one's held-out gain is a rival

@@ -158,10 +158,11 @@ def _load(model: Model, v: dict[str, float]) -> Model:
 def _ripple_variants(conds: list[dict], structure) -> list[tuple[dict, dict]]:
     """The ripple harmonic is not fitted but tried: each signal's residual proposes its own best
     k (they need not agree: the q residual is dominated by other errors), so every distinct
-    proposal is screened, most-explained first, at most three."""
+    proposal is screened, most-explained first, at most three; a real k (the rotor's balance
+    scans real periods) at the whole harmonic nearest it."""
     ranked = sorted((c for c in conds if c["name"] == "periodic_q" and c["params"].get("k")),
                     key=lambda c: -c["score"])
-    ks = list(dict.fromkeys(float(c["params"]["k"]) for c in ranked))[:3] or [1.0]
+    ks = list(dict.fromkeys(float(max(1, round(c["params"]["k"]))) for c in ranked))[:3] or [1.0]
     return [({}, {"torque_ripple.harmonic": k}) for k in ks]
 
 
