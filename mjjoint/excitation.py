@@ -20,6 +20,7 @@ import numpy as np
 
 from .params import check
 from .recordings.csv_io import read_csv_table
+from .recordings.validate import period_problem
 
 
 def sample_times(rate: float, duration: float) -> np.ndarray:
@@ -54,6 +55,12 @@ def _below_nyquist(name: str, f: float, rate: float) -> None:
                          f"below the Nyquist frequency at rate={rate:g} Hz")
 
 
+def _starts_within(t0: float, duration: float) -> None:
+    """An input that would start after the run is a mistake, not a run at rest."""
+    if not t0 < duration:
+        raise ValueError(f"t0={t0:g} s is not before the run's end ({duration:g} s): the input would be 0 throughout")
+
+
 @dataclass(frozen=True)
 class Step:
     """u = amplitude from t0 on, 0 before."""
@@ -67,6 +74,7 @@ class Step:
 
     def sample(self, rate: float, duration: float) -> np.ndarray:
         n = len(sample_times(rate, duration))
+        _starts_within(self.t0, duration)
         return self.amplitude * _held_fraction(n, rate, self.t0, math.inf)
 
 
@@ -85,6 +93,7 @@ class Impulse:
 
     def sample(self, rate: float, duration: float) -> np.ndarray:
         n = len(sample_times(rate, duration))
+        _starts_within(self.t0, duration)
         return self.amplitude * _held_fraction(n, rate, self.t0, self.t0 + self.width)
 
 
@@ -201,7 +210,10 @@ class FromFile:
         steps = np.diff(t)
         if np.any(steps <= 0):
             k = int(np.flatnonzero(steps <= 0)[0]) + 1
-            raise ValueError(f"{path}: line {table.lines[k]}: time {t[k]!r} does not increase")
+            raise ValueError(f"{path}: line {table.lines[k]}: time {float(t[k])!r} does not increase")
+        problem = period_problem(float(np.median(steps)), float(t[-1] - t[0]), scales=False) if steps.size else None
+        if problem is not None:  # t in milliseconds would run the input a thousand times slower
+            raise ValueError(f"{path}: {problem}")
         # Derived data, not fields: equality and repr stay those of the file reference.
         object.__setattr__(self, "t", t - t[0])
         object.__setattr__(self, "u", u)

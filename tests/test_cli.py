@@ -116,6 +116,7 @@ BAD_ARGS = [
     (lambda p: ["simulate", "--rate", "fast"], "invalid float value"),
     (lambda p: ["simulate", "--rate", "-5"], "--rate=-5"),
     (lambda p: ["simulate", "--duration", "0"], "duration=0"),
+    (lambda p: ["simulate", "--duration", "nan"], "--duration=nan s must be positive and finite"),
     (lambda p: ["simulate", "--csv", str(p)], "is a directory"),
     (lambda p: ["simulate", "--csv", str(p / "file.txt" / "x.csv")], "file.txt"),
     # outside the working directory an output's folder must exist (nothing made at the root)

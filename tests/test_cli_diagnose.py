@@ -269,6 +269,8 @@ def test_matlab_struct_matrix_and_jittered_clock_reach_the_fit(files, tmp_path, 
     (["{rec}", "--gear-ratio", "160", "--window-length", "2"], "too short"),
     (["{rec}", "--gear-ratio", "160", "--window-length", "0.001"], "must exceed its warm-up of 0.02 s"),
     (["{rec}", "--gear-ratio", "160", "--lead-in", "-1"], "--lead-in -1 must lie in [0, 60] s"),
+    (["{rec}", "--gear-ratio", "160", "--window-length", "inf"], "--window-length inf must be positive and finite"),
+    (["{rec}", "--gear-ratio", "160", "--seed", "-1"], "--seed -1 must be 0 or more"),
 ])
 def test_bad_inputs_fail_in_one_line_with_exit_2(files, tmp_path, capsys, monkeypatch, argv, message):
     monkeypatch.chdir(tmp_path)  # missing folders of --out may be created here

@@ -125,6 +125,11 @@ def test_bad_sampling_is_rejected():
         Step().sample(0, 1.0)
     with pytest.raises(ValueError, match="duration=-1"):
         Step().sample(1000, -1.0)
+    # an input that starts after the run would leave it at rest throughout, silently
+    with pytest.raises(ValueError, match=r"t0=10 s is not before the run's end \(0.1 s\)"):
+        Step(t0=10.0).sample(1000, 0.1)
+    with pytest.raises(ValueError, match="t0=0.9 s"):
+        Impulse(t0=0.9).sample(1000, 0.5)
 
 
 def test_registry_defaults_build_and_sample():
@@ -155,6 +160,8 @@ def test_from_file_is_a_zero_order_hold_of_the_file(tmp_path):
     ("t,u\n0,1\n0.1,abc\n", "abc"),
     ("0,1\n0.1,2\n", "header"),
     ("", "empty"),
+    # t in milliseconds would replay the input a thousand times slower
+    ("t,u\n" + "".join(f"{k},{k % 7}\n" for k in range(1000)), r"t looks like milliseconds.*\(write t in seconds\)"),
 ])
 def test_from_file_bad_files_fail_in_one_line(tmp_path, text, match):
     path = tmp_path / "bad.csv"

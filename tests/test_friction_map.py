@@ -54,6 +54,18 @@ def test_coulomb_and_viscous_log_names_nothing():
     assert result.final.rms == pytest.approx(NOISE, rel=0.5)
 
 
+@pytest.mark.parametrize("cut, message", [
+    (lambda t, q, tau: (t[:20], q[:20], tau[:20]), "0.02 s holds fewer than 8 blocks of 0.25 s"),
+    (lambda t, q, tau: (t, np.zeros_like(q), tau), "a joint at rest holds nothing to fit"),
+])
+def test_a_log_too_short_or_without_motion_is_refused(cut, message):
+    """A 20-sample log was fitted with an empty held-out set (rms null, numpy's warning); one
+    whose motor never moved, as if it held friction."""
+    log = FrictionLog((cut(*friction_log(("coulomb_friction", "viscous_friction"), STATIC)),))
+    with pytest.raises(ValueError, match=message):
+        fit_friction_map(log)
+
+
 def test_cli_friction_map_reports_rms_in_newton_metres(tmp_path: Path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     t, q, tau = friction_log(("coulomb_friction", "viscous_friction", "stribeck_friction"), STATIC, seconds=6.0)

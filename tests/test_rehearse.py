@@ -72,10 +72,19 @@ def test_the_reader_delays_every_channel_by_whole_samples():
 
 
 @pytest.mark.parametrize("sensors", [dict(resolver_bits=-1), dict(encoder_bits=33), dict(torque_noise=-0.1),
-                                     dict(delay=1.5)])
+                                     dict(delay=1.5), dict(q_noise=1e300), dict(torque_noise=1e5)])
 def test_bad_sensor_values_name_the_range(sensors):
     with pytest.raises(ValueError, match="range|integer"):
         Sensors(**sensors)
+
+
+def test_a_delay_as_long_as_the_run_is_refused(tmp_path, capsys):
+    """A 10 000-sample delay on a 2 s run at 1 kHz logged q = 0 throughout, exit 0."""
+    assert main(["simulate", "--controller", "pd", "--duration", "2", "--delay", "2000",
+                 "--csv", str(tmp_path / "rec.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--delay 2000 samples is not shorter than the run (2000 samples)" in err[0]
+    assert not (tmp_path / "rec.csv").exists()
 
 
 def test_the_written_command_never_exceeds_the_limit(tmp_path, capsys):

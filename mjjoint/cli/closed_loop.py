@@ -157,6 +157,9 @@ def run(args: argparse.Namespace, model: ModelFile, rate: float) -> int:
     controller, sensors = controller_from_args(args), sensors_from_args(args)
     reference = reference_from_args(args)
     duration = args.duration if args.duration is not None else reference.duration or DEFAULT_DURATION
+    if sensors.delay >= duration * rate:
+        raise CliError(f"--delay {sensors.delay} samples is not shorter than the run ({duration * rate:.0f} samples): "
+                       "nothing would be logged but the start")
     outputs = output_paths(args)
     if "csv" in outputs:
         outputs["sidecar"] = outputs["csv"].with_suffix(".json")

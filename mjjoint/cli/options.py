@@ -123,6 +123,8 @@ def inputs_from_args(args: argparse.Namespace) -> Inputs:
     """The problem's inputs from the command line (one-line errors naming the option)."""
     if not 0 < args.window_length < math.inf:
         raise CliError(f"--window-length {args.window_length:g} must be positive and finite")
+    if args.seed < 0:
+        raise CliError(f"--seed {args.seed} must be 0 or more")
     if not 0 <= args.lead_in <= MAX_LEAD:
         raise CliError(f"--lead-in {args.lead_in:g} must lie in [0, {MAX_LEAD:g}] s")
     return Inputs(gear_ratio=args.gear_ratio, k_m=args.k_m,

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import os
 import sys
 from pathlib import Path
@@ -170,6 +171,8 @@ def check_memory(sim: Simulator, rate: float, duration: float) -> None:
     (the chunks and their stacked copy), and each joint's traces (9 signals, its plugin states
     and the positions of every joint for the 3D view); times ``HEADROOM`` for the writers' copies.
     """
+    if not 0 < duration < math.inf:  # before it counts samples: nan would count as nan GB
+        raise CliError(f"--duration={duration:g} s must be positive and finite")
     joints = len(sim.joints)
     nstate = mujoco.mj_stateSize(sim.model, FULL)
     per_sample = 8 * (1 + joints + 2 * nstate + joints * (9 + NSTATE + sim.model.nq))

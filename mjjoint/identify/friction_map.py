@@ -30,6 +30,7 @@ from ..joint import JointParams
 from ..physics.jit import kernel
 from ..physics.stribeck import StaticFriction, static_friction
 from ..physics.twosep import TwoSEP, twosep_force
+from ..recordings.consistency import motion_problem
 from .effects import EFFECTS, Param, check_effects
 from .windows import velocity
 
@@ -39,6 +40,7 @@ FRICTION_EFFECTS = tuple(e.name for e in EFFECTS.values() if e.term == "friction
 BASE = ("coulomb_friction", "viscous_friction")
 BLOCK = 0.25  # [s] held-out blocks: long against the friction's memory (2SEP's lag, ms)
 HOLDOUT = 0.25
+MIN_BLOCKS = 8  # blocks a log must hold: two held out, six fitted
 # The static map's sign regularisation, as a share of the log's typical speed. The plugin's
 # v_eps (1 rad/s) is set by the explicit integrator's stability, which a map evaluated on a
 # measured velocity does not need; a wide one smooths the jump at reversals, and on a
@@ -151,6 +153,14 @@ class _Problem:
     def __init__(self, log: FrictionLog, seed: int):
         self.tau, self.w, self.h = log.tau, log.w, 1.0 / log.rate
         self.bounds = np.cumsum([0, *(len(t) for t, _, _ in log.segments)])
+        for _, q, _ in log.segments:
+            problem = motion_problem(q)
+            if problem is not None:
+                raise ValueError(f"friction log: {problem}")
+        span = len(self.tau) * self.h
+        if span < MIN_BLOCKS * BLOCK:  # a held-out share and a fitted one, each of whole blocks
+            raise ValueError(f"friction log: {span:.3g} s holds fewer than {MIN_BLOCKS} blocks of {BLOCK:g} s to fit "
+                             "and hold out; log longer")
         moving = np.abs(self.w) > 0
         speed = float(np.median(np.abs(self.w[moving]))) if moving.any() else 1.0
         self.v_eps = SIGN_SHARE * speed

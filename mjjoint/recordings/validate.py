@@ -91,7 +91,7 @@ def check_time(t: np.ndarray, ctx: Context, allow_gaps: bool) -> None:
         )
     dt = float(np.median(d))
     if not DT_MIN <= dt <= DT_MAX:
-        raise ctx.error(_time_unit_message(dt, float(t[-1] - t[0])))
+        raise ctx.error(period_problem(dt, float(t[-1] - t[0])))
     gaps = np.flatnonzero(d > MAX_GAP * dt)
     if gaps.size and not allow_gaps:
         i = int(gaps[0]) + 1
@@ -102,16 +102,20 @@ def check_time(t: np.ndarray, ctx: Context, allow_gaps: bool) -> None:
         )
 
 
-def _time_unit_message(dt: float, span: float) -> str:
-    """Why a median period ``dt`` outside [DT_MIN, DT_MAX] is refused, naming the likely unit."""
+def period_problem(dt: float, span: float, scales: bool = True) -> str | None:
+    """Why a median period ``dt`` outside [DT_MIN, DT_MAX] is refused, naming the likely unit
+    and, with ``scales``, the option that reads it (else: write t in seconds); None within."""
+    if DT_MIN <= dt <= DT_MAX:
+        return None
     plain = (f"median sample period {dt:.3g} s ({1 / dt:.3g} Hz over {span:.6g} s) is outside "
              f"[{DT_MIN:g}, {DT_MAX:g}] s")
     if dt > DT_MAX:
         for unit, factor in TIME_UNITS:
             if DT_MIN <= dt * factor <= DT_MAX:
                 return (f"t looks like {unit}: {plain}; read as {unit} it is {1 / (dt * factor):.6g} Hz "
-                        f"over {span * factor:.6g} s (set --scales t={factor:g})")
-    return f"{plain}; is t in seconds? (e.g. --scales t=1e-3 for milliseconds)"
+                        f"over {span * factor:.6g} s " + (f"(set --scales t={factor:g})" if scales else
+                                                          "(write t in seconds)"))
+    return f"{plain}; is t in seconds?" + (" (e.g. --scales t=1e-3 for milliseconds)" if scales else "")
 
 
 def _check_magnitude(name: str, x: np.ndarray, t: np.ndarray, ctx: Context) -> None:

@@ -18,6 +18,10 @@ from ..params import check
 RESOLVER_BITS = 15      # motor resolver of the chapter's testbed (Sec. 4)
 LINK_ENCODER_BITS = 20  # its output encoder (Sec. 4)
 MAX_BITS = 32
+# Beyond these no sensor is described: an angle's noise of a radian rms, a torque cell's of
+# 10 kN m rms (the largest robot axes carry a few kN m).
+MAX_ANGLE_NOISE = 1.0   # [rad]
+MAX_TORQUE_NOISE = 1e4  # [N m]
 
 
 def lsb(bits: int) -> float:
@@ -54,8 +58,9 @@ class Sensors:
     def __post_init__(self) -> None:
         _check_int("resolver_bits", self.resolver_bits, 0, MAX_BITS)
         _check_int("encoder_bits", self.encoder_bits, 0, MAX_BITS)
-        for name in ("q_noise", "theta_noise", "torque_noise"):
-            check(name, getattr(self, name), 0.0)
+        for name in ("q_noise", "theta_noise"):
+            check(name, getattr(self, name), 0.0, MAX_ANGLE_NOISE)
+        check("torque_noise", self.torque_noise, 0.0, MAX_TORQUE_NOISE)
         _check_int("delay", self.delay, 0, 10_000)
         _check_int("seed", self.seed, 0, 2 ** 63 - 1)
 
