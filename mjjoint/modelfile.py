@@ -4,7 +4,7 @@ A TOML/YAML model file has the sections (all optional; an absent one keeps the d
 
     [simulation]     sample_rate
     [arm]            ArmSpec fields (segments, rod_length, ..., timestep)
-    [joint]          motor_joint, link_joint ("world" fixes that side)
+    [joint]          motor_joint, link_joint ("world" locks the output)
     [friction]       kind = "2sep" | "static" | "none", plus that kind's fields
     [transmission]   gear_ratio, k1, k2, k3, damping, backlash
     [hysteresis]     kind = "boucwen" | "none", plus mu, a, beta, gamma, n
@@ -173,14 +173,21 @@ def parse_model(data: Any) -> ModelFile:
     )
 
 
+def shipped(path: Path) -> Path:
+    """``path``, or the shipped MJCF it names by its bare name ("arm3.xml") where no such file is here."""
+    if (path.suffix.lower() == ".xml" and not path.is_file() and path.parent == Path(".")
+            and (ASSETS_DIR / path.name).is_file()):
+        return ASSETS_DIR / path.name
+    return path
+
+
 def load_model_file(path: str | Path) -> ModelFile:
     """Read a .toml, .yaml/.yml or .xml model; every problem is a one-line ``ValueError``."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
         raise ValueError(f"{path}: unsupported model file type {suffix!r} (allowed: {', '.join(SUFFIXES)})")
-    if suffix == ".xml" and not path.is_file() and path.parent == Path(".") and (ASSETS_DIR / path.name).is_file():
-        path = ASSETS_DIR / path.name  # a shipped MJCF by its name: "arm3.xml"
+    path = shipped(path)
     if not path.is_file():
         raise ValueError(f"{path}: no such file")
     if suffix == ".xml":

@@ -196,6 +196,7 @@ def test_a_structure_moves_joint_j_of_the_arm_by_its_change_from_the_view(arm):
 @pytest.mark.parametrize("argv, message", [
     (["--arm", "{single}"], "--arm {single}: a single-joint model file"),
     (["--arm", "{three}"], "--arm has 3 mjjoint joints; the recording holds 2"),
+    (["--arm", "arm3.xml"], "--arm has 3 mjjoint joints; the recording holds 2"),  # the shipped MJCF, by name
     (["--arm", "{missing}"], "--arm {missing}: no such file"),
     (["--arm", "{toml}", "--joint", "3"], "--joint 3: {csv} holds 2 joints (1-2)"),
     (["--arm", "{xml}"], "--arm {xml}: "),

@@ -8,7 +8,7 @@ import mujoco
 from ..assets import load_model
 from ..assets.serial_file import SerialArmFile, read_model_file
 from ..coupling.plugin import register_model
-from ..modelfile import ModelFile
+from ..modelfile import ModelFile, shipped
 from ..sim import joint_indices
 
 
@@ -16,7 +16,7 @@ def arm_model(arm: SerialArmFile | str | Path, n_joints: int, name: str = "arm")
     """The compiled arm: a ``[[joint]]`` model file (or its ``SerialArmFile``) or an MJCF whose
     ``mjjoint.joint`` instances are the recording's joints 1..n in order (one-line ValueError)."""
     if isinstance(arm, (str, Path)):
-        path = Path(arm)
+        path = shipped(Path(arm))
         if not path.is_file():
             raise ValueError(f"{name} {path}: no such file")
         if path.suffix.lower() == ".xml":
