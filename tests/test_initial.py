@@ -236,3 +236,15 @@ def test_a_start_too_stiff_for_the_step_is_set_back_to_the_nominal():
     problem = joint_problems(rec, dict(gear_ratio=160.0, base=(), design=design))[None]
     assert problem.base.start.values["inertia.motor"] < 1e-2 * ArmSpec().motor_inertia  # the misread
     assert stable(problem.base) and problem.base.values["inertia.motor"] == pytest.approx(ArmSpec().motor_inertia)
+
+
+def test_a_recording_too_short_to_filter_is_refused_in_words():
+    """Twelve samples reached scipy's "padlen" message; a recording read at the wrong time unit,
+    its Savitzky-Golay window's."""
+    t = np.arange(12) / 1000.0
+    rec = Recording(t=t, u=np.sin(t), q=np.sin(40 * t), theta=np.sin(40 * t) / 160.0)
+    with pytest.raises(ValueError, match="12 samples are too few to estimate the joint from"):
+        estimate(Measured.from_recording(rec, 160.0))
+    t = np.arange(1000) * 1e-6  # a millisecond clock read as seconds, scaled once more
+    with pytest.raises(ValueError, match="1000 samples at 1e\\+06 Hz are fewer than the derivative's window"):
+        Measured.from_recording(Recording(t=t, u=np.sin(t), q=np.sin(t), theta=np.sin(t) / 160.0), 160.0)

@@ -3,6 +3,7 @@
 Each round:
 1. the current structure is fitted to the training windows (``identify.fit``);
 2. its prediction residual is located (``locate``): which signal, when, under which condition;
+   and, where the gear torque is recorded, the rotor's torque balance (``balance``);
 3. every effect not yet in the model (whose prerequisites are; those screened on request only
    where the options name them or the recording shows their sign: ``recorded_signs``) is
    screened by fitting its own parameters and those of the effects it refines, the rest held
@@ -20,8 +21,8 @@ Each round:
    on the model itself fitted the same way on all of them, each to the result a whole screen gives;
 4. the candidate that lowers the HELD-OUT cost most is named if it passes both tests below;
    if none does and a located condition is significant, the generic forms that condition points
-   to (``identify.generic``: the open vocabulary, named by site and form) are screened and
-   judged the same way; if none of those does either, the two best screens fitted together
+   to (``identify.generic``: the open vocabulary, named by site and form) are screened, as the
+   catalogue last was (all free after an escalation), and judged the same way; if none of those does either, the two best screens fitted together
    (``diagnosis.pairs``: two missing terms can mask each other) are judged as one addition;
    it is added, the whole structure refitted (least squares; where that leaves a parameter on
    a stand-in bound FAR_FROM_FLOOR times the floor away, again from the recording's start,

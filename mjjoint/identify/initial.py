@@ -152,6 +152,9 @@ def estimate(measured, arm=None) -> Estimate:
     # A slow recording keeps a cutoff below its Nyquist frequency.
     cutoff = min(CUTOFF, CUTOFF_NYQUIST * m.rate / 2.0)
     b, a_ = butter(4, cutoff * 2.0 / m.rate)
+    if len(m.q) <= 3 * len(b):  # filtfilt's padding each side
+        raise ValueError(f"{len(m.q)} samples are too few to estimate the joint from (at least {3 * len(b) + 1}): "
+                         "record longer")
     smooth = lambda x: filtfilt(b, a_, np.asarray(x, float))  # noqa: E731
     rate = lambda x: np.gradient(x, 1.0 / m.rate)  # noqa: E731
     v = rate(smooth(m.q))

@@ -358,7 +358,11 @@ def window_starts(total: int, n: int, u: np.ndarray, half: int, max_shift: int,
 
 def velocity(x: np.ndarray, dt: float) -> np.ndarray:
     """The derivative of a uniformly sampled signal, the Savitzky-Golay one of window starts."""
-    return savgol_filter(x, _sg_window(dt), VELOCITY_ORDER, deriv=1, delta=dt)
+    width = _sg_window(dt)
+    if len(x) < width:
+        raise ValueError(f"{len(x)} samples at {1.0 / dt:.6g} Hz are fewer than the derivative's window of {width} "
+                         f"({VELOCITY_WINDOW * 1e3:g} ms): record longer (or check t's unit)")
+    return savgol_filter(x, width, VELOCITY_ORDER, deriv=1, delta=dt)
 
 
 def _sg_window(dt: float) -> int:
