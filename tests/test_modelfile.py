@@ -85,6 +85,7 @@ def test_an_mjcf_path_is_taken_as_the_model():
 BAD = [
     ("range.toml", "[transmission]\nk1 = -3\n", "transmission.k1=-3 is outside the allowed range"),
     ("range.yaml", "hysteresis:\n  mu: 1.5\n", "hysteresis.mu=1.5"),
+    ("ratio.toml", "[transmission]\ngear_ratio = 1e300\n", "transmission.gear_ratio=1e+300 is outside the allowed range"),
     ("arm.toml", "[arm]\nsegments = 4.5\n", "arm.segments=4.5"),
     ("rate.toml", "[simulation]\nsample_rate = 0\n", "simulation.sample_rate=0"),
     ("section.toml", "[transmision]\nk1 = 3\n", "unknown section 'transmision'"),

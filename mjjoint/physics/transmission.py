@@ -48,6 +48,11 @@ def transmission_stiffness(delta_e, x, mu, k1, k2, k3, a):
     return mu * elastic + (1.0 - mu) * a * plastic
 
 
+# Multi-stage and worm gears reach a few thousand; beyond this a ratio is a typing error, and the
+# link's motion (q / N) falls below what a double holds.
+MAX_GEAR_RATIO = 1e5
+
+
 @dataclass(frozen=True)
 class Transmission:
     """Gear ratio, stiffness polynomial, damping, backlash and optional Bouc-Wen hysteresis.
@@ -66,7 +71,7 @@ class Transmission:
     hysteresis: BoucWen | None = nested("hysteresis", BoucWen())
 
     def __post_init__(self) -> None:
-        check("gear_ratio", self.gear_ratio, 0.0, lo_open=True)
+        check("gear_ratio", self.gear_ratio, 0.0, MAX_GEAR_RATIO, lo_open=True)
         check("k1", self.k1, 0.0, lo_open=True)
         check("k2", self.k2, 0.0)
         check("k3", self.k3, 0.0)
