@@ -98,7 +98,8 @@ def check_inputs(inputs: Inputs, names: Mapping[str, str] | None = None) -> None
         raise ValueError(f"{say('joints')}: joints are numbered from 1, got {inputs.joints!r}")
     if inputs.plant not in PLANTS:
         raise ValueError(f"{say('plant')} {inputs.plant!r} is not one of {', '.join(PLANTS)}")
-    if inputs.base is not None and inputs.model is None:  # a model file's effects are read with it
+    # the arm's effects; a drive's and a model file's are checked where those are known
+    if inputs.base is not None and inputs.model is None and inputs.plant == "arm":
         _effects(inputs.base, say)
 
 

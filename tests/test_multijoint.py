@@ -377,7 +377,7 @@ def test_simulate_cli_takes_a_multi_joint_model_file(tmp_path):
     model, csv = tmp_path / "arm.toml", tmp_path / "out.csv"
     model.write_text(MULTI_TOML)
     assert main(["simulate", "--model", str(model), "--excitation", "step", "--amplitude", "0.15",
-                 "--duration", "0.2", "--csv", str(csv)]) == 0
+                 "--param", "t0=0.05", "--duration", "0.2", "--csv", str(csv)]) == 0
     rec = read_recording(csv)
     direct = recording(Simulator(read_model_file(model).compile()).run(np.column_stack([rec.joint(1).u] * 2)))
     for j in (1, 2):  # the CLI wrote exactly what the API computes

@@ -43,7 +43,8 @@ def entities(path) -> set[str]:
 
 def test_simulate_shows_the_arm_beside_the_traces(tmp_path):
     rrd = tmp_path / "loop.rrd"
-    assert main(["simulate", "--controller", "pd", "--reference", "step", "--duration", "0.5", "--rrd", str(rrd)]) == 0
+    assert main(["simulate", "--controller", "pd", "--reference", "step", "--param", "t0=0.1", "--duration", "0.5",
+                 "--rrd", str(rrd)]) == 0
     kind, (arm, plots) = blueprint_tree(rrd)
     assert kind == "Horizontal" and arm[:2] == ("3D", "arm") and arm[2] == ["/world/**"]
     assert plots[0] == "Vertical" and all(v[0] == "TimeSeries" for v in plots[1])
