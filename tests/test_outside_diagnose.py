@@ -103,6 +103,17 @@ def test_out_of_regime_case(name, tmp_path):
 
 
 @pytest.mark.slow
+def test_cogging_at_a_real_period_is_named_by_its_generic_form(tmp_path):
+    """Seed 9's cogging (3.41 cycles a motor revolution) shows in the prediction residuals only at
+    the gear's resonance; the rotor's torque balance shows it at its period, and the generic form
+    screened from there with every parameter free is named (docs/diagnosis.md, "The rotor's
+    balance"; ~2 min)."""
+    score = run_case("cogging", 9, tmp_path)
+    assert score.named == ["motor_periodic_q"] and not score.false_additions, score.verdict
+    assert score.nrmse_after < 0.05 * score.nrmse_before and score.passed
+
+
+@pytest.mark.slow
 def test_a_flexible_rods_damping_is_not_taken_for_a_hysteretic_gear(tmp_path):
     """Seed 2's lumped rod (2 % critical damping): with the rod's damping fixed at a guess the
     hysteretic gear took up the mode's decay and was named beside the rod (docs/diagnosis.md,
