@@ -76,10 +76,9 @@ def from_section(cls: type, values: dict[str, Any], where: str, **objects: Any):
     keys and the dataclass checks ranges; a message about one field gets the key path
     ``where.`` prefixed.
     """
-    if not isinstance(values, dict):
-        raise ValueError(f"{where} must be a section of key = value pairs, not {brief(values)}")
     defaults = {f.name: f.default for f in dataclasses.fields(cls)}
-    values = {k: _typed(f"{where}.{k}", v, defaults[k]) if k in defaults else v for k, v in values.items()}
+    values = {k: _typed(f"{where}.{k}", v, defaults[k]) if k in defaults else v
+              for k, v in as_section(values, where).items()}
     try:
         return from_mapping(cls, {**values, **objects}, where)
     except ValueError as exc:
@@ -88,6 +87,13 @@ def from_section(cls: type, values: dict[str, Any], where: str, **objects: Any):
     except TypeError:  # a required field without a value
         missing = sorted(k for k, d in defaults.items() if d is dataclasses.MISSING and k not in values)
         raise ValueError(f"{where}.{missing[0]} is required") from None
+
+
+def as_section(body: Any, where: str) -> dict:
+    """``body`` where it is a section (a table of keys), else a one-line error naming ``where``."""
+    if not isinstance(body, dict):
+        raise ValueError(f"{where} must be a section of key = value pairs, not {brief(body)}")
+    return body
 
 
 def brief(value: Any, most: int = 40) -> str:
@@ -153,8 +159,7 @@ def parse_model(data: Any) -> ModelFile:
     if unknown:
         raise ValueError(f"unknown section {unknown[0]!r} (allowed: {', '.join(SECTION_NAMES)})")
     for name, body in data.items():
-        if not isinstance(body, dict):
-            raise ValueError(f"{name} must be a section of key = value pairs, not {brief(body)}")
+        as_section(body, name)
     # A section absent from the file leaves its term as the defaults have it; a nested term
     # (the transmission's hysteresis) is read first and handed to the term that holds it.
     d = JointParams()

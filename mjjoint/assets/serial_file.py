@@ -13,7 +13,7 @@ from typing import Any
 import mujoco
 import yaml
 
-from ..modelfile import ModelFile, Simulation, _one_line, brief, from_section, load_model_file, parse_model
+from ..modelfile import ModelFile, Simulation, _one_line, as_section, from_section, load_model_file, parse_model
 from .builder import load_model
 from .serial import JointSpec, World, build_serial_arm, unit_vector
 
@@ -49,10 +49,7 @@ def parse_joint_entry(entry: Any, where: str) -> JointSpec:
         params = parse_model({k: v for k, v in entry.items() if k in PHYSICS}).joint
     except ValueError as exc:
         raise ValueError(f"{where}.{exc}") from None
-    body = entry.get("arm", {})
-    if not isinstance(body, dict):
-        raise ValueError(f"{where}.arm must be a section of key = value pairs, not {brief(body)}")
-    body = dict(body)
+    body = dict(as_section(entry.get("arm", {}), f"{where}.arm"))
     vectors = {k: unit_vector(f"{where}.arm.{k}", body.pop(k)) for k in ("axis", "direction") if k in body}
     return from_section(JointSpec, body, f"{where}.arm", joint=params, **vectors)
 

@@ -40,8 +40,8 @@ def add_fleet_options(p: argparse.ArgumentParser) -> None:
 
 def check_single(args: argparse.Namespace) -> None:
     """Fleet options with one recording are a mistake worth naming."""
-    given = [f"--{k}" for k in ("workers", "scheduler", "force") if getattr(args, k) is not None and getattr(args, k)
-             is not False]  # identity: --workers 0 equals False
+    # by identity: --workers 0 equals False
+    given = [f"--{k}" for k in ("workers", "scheduler", "force") if (v := getattr(args, k)) is not None and v is not False]
     if given:
         raise CliError(f"{', '.join(given)}: for a folder, glob or manifest of recordings; "
                        f"{' '.join(map(str, args.recording))} is not a fleet")

@@ -146,8 +146,9 @@ def output_paths(args: argparse.Namespace) -> dict[str, Path]:
     for kind, path in out.items():
         if path.is_dir():
             raise CliError(f"{path}: is a directory, not a file")
-        if path.suffix.lower() not in _suffixes(kind):
-            raise CliError(f"{path}: {option[kind]} writes {' or '.join(sorted(_suffixes(kind)))}, not "
+        allowed = _suffixes(kind)
+        if path.suffix.lower() not in allowed:
+            raise CliError(f"{path}: {option[kind]} writes {' or '.join(sorted(allowed))}, not "
                            f"{path.suffix or 'a name without a suffix'!r}")
         check_destination(path, option[kind])
         if path.exists() and not os.access(path, os.W_OK):

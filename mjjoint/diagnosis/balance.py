@@ -14,6 +14,7 @@ each coefficient fitted by least squares (so neither u's unit nor the gear ratio
 the v_i are locate's Stribeck widths, u' stands for an input that acts late). Each term the
 rotor can have whatever its angle takes out of r what would otherwise follow the motion and so
 project onto some period of q.
+
 Only the conditions of an angle-periodic torque are scored on it, at real periods that repeat
 at least PERIODS times over the recorded travel: the friction's other structure in r is the
 model's business, judged on the output signals, and a slow wander of r over the record (a lag's
@@ -25,7 +26,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .locate import STRIBECK_SPEEDS, SignalLocation, condition_scores, friction_periodic, nrmse, real_periodic, residual_windows
+from .locate import (STRIBECK_SPEEDS, SignalLocation, condition_scores, friction_periodic, nrmse, real_periodic,
+                     residual_windows)
 
 SIGNAL = "motor_balance"  # its name among a location's signals
 PERIODS = 4               # a period claimed repeats at least this often over the motor's travel

@@ -545,9 +545,10 @@ def condition_scores(
     highest first (scale and noise threshold: see the module docstring).
 
     `conditions` holds per-sample arrays as from `features.operating_conditions`; conditions
-    whose arrays are missing are skipped. `built`: a caller's own conditions, scored instead. Resonance and lag need the time base `t` and the
-    `measured` signal; without `t` the null also permutes sample by sample, as block length is
-    a time. A residual without variance concentrates nowhere: the list is empty.
+    whose arrays are missing are skipped. `built`: a caller's own conditions, scored instead.
+    Resonance and lag need the time base `t` and the `measured` signal; without `t` the null
+    also permutes sample by sample, as block length is a time. A residual without variance
+    concentrates nowhere: the list is empty.
     """
     r = np.asarray(r, dtype=float)
     for key, v in conditions.items():

@@ -22,8 +22,9 @@ Each round:
 4. the candidate that lowers the HELD-OUT cost most is named if it passes both tests below;
    if none does and a located condition is significant, the generic forms that condition points
    to (``identify.generic``: the open vocabulary, named by site and form) are screened, as the
-   catalogue last was (all free after an escalation), and judged the same way; if none of those does either, the two best screens fitted together
-   (``diagnosis.pairs``: two missing terms can mask each other) are judged as one addition;
+   catalogue last was (all free after an escalation), and judged the same way; if none of those
+   does either, the two best screens fitted together (``diagnosis.pairs``: two missing terms can
+   mask each other) are judged as one addition;
    it is added, the whole structure refitted (least squares; where that leaves a parameter on
    a stand-in bound FAR_FROM_FLOOR times the floor away, again from the recording's start,
    ``restarted``; then under the robust loss over
@@ -109,6 +110,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+import weakref
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -122,12 +124,11 @@ from ..identify.fit import (FitResult, check_intervals, finish, fit, fits_from, 
 from ..identify.structure import Structure
 from ..identify.twin import Twin
 from ..identify.windows import Predictor
+from .balance import SIGNAL as BALANCE, balance_location
 from .clock import Phases, ScreenClock
 from .features import operating_conditions, reversal_proximity
 from .floor import EXPLAINED_RATIO, WINDOWING_TRUST, Floor, judged, noise_floor
 from .gear_law import ENERGY_RETURNED, law_energy, law_ratio, law_site
-from .balance import balance_location
-from .balance import SIGNAL as BALANCE
 from .locate import REVERSAL_WINDOW_S, locate, located_conditions
 
 MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
@@ -273,10 +274,18 @@ def residual_location(predictor: Predictor, structure: Structure, seed: int = 0)
     cond = {k: np.asarray(v)[span] for k, v in cond.items()}
     t = m.t[span]
     where = locate(t, meas, sim, cond, seed=seed).as_dict()
-    balance = balance_location(t, cond, seed=seed)
-    if balance is not None:  # a torque on the rotor as a function of its angle, however filtered
-        where["signals"][balance.signal] = balance.as_dict()
+    # A torque on the rotor as a function of its angle, however filtered. The balance is the
+    # recording's alone, whatever the model: located once per recording and seed, not each round
+    # (its scan of real periods is the costliest condition on a long travel).
+    balances = _BALANCES.setdefault(predictor, {})
+    if seed not in balances:
+        balances[seed] = balance_location(t, cond, seed=seed)
+    if balances[seed] is not None:
+        where["signals"][BALANCE] = balances[seed].as_dict()
     return where
+
+
+_BALANCES: "weakref.WeakKeyDictionary[Predictor, dict]" = weakref.WeakKeyDictionary()
 
 
 BUNDLE = "+"  # joins an effect to the prerequisites screened with it: "linear_stiffness+backlash"

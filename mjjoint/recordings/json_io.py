@@ -55,8 +55,8 @@ def _collect(node, path: str, arrays: dict[str, np.ndarray]) -> None:
         column = _numbers(node)
         if column is not None:
             arrays[path] = column
-    elif isinstance(node, (bool, int, float)) and path and math.isfinite(_float(node)):
-        arrays[path] = np.array([_float(node)])
+    elif isinstance(node, (bool, int, float)) and path and math.isfinite(value := _float(node)):
+        arrays[path] = np.array([value])
 
 
 def _lines(text: str) -> list:
