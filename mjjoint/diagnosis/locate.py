@@ -41,6 +41,7 @@ from scipy.ndimage import uniform_filter1d
 from scipy.signal import welch
 
 from .features import sample_period
+from .harmonics import harmonic_scores
 from .window_median import window_medians
 
 REVERSAL_WINDOW_S = 0.030   # [s]: stick-slip and backlash transients last tens of ms
@@ -204,43 +205,6 @@ def _concentration(name: str, mask: np.ndarray, text: str) -> _Condition:
         return f"{text} ({p['energy_share']:.0%} of residual energy in {p['time_share']:.0%} of the time)"
 
     return _Condition(name, evaluate, describe)
-
-
-def _pair_basis(a: np.ndarray, b: np.ndarray) -> list[np.ndarray]:
-    """An orthonormal basis of span{a, b} by Gram-Schmidt from the longer one, twice (enough for
-    an orthogonal pair in floating point); a direction under 1e-9 of the longer's norm is
-    dropped, ``_centered_basis``'s rule."""
-    if a @ a < b @ b:
-        a, b = b, a
-    scale = float(np.sqrt(a @ a))
-    if scale == 0.0:
-        return []
-    first = a / scale
-    for _ in range(2):
-        b = b - (first @ b) * first
-    norm = float(np.sqrt(b @ b))
-    return [first] + ([b / norm] if norm > 1e-9 * scale else [])
-
-
-def harmonic_scores(angle: np.ndarray, start: float, step: float, count: int, R: np.ndarray,
-                    sign: np.ndarray | None = None) -> np.ndarray:
-    """``_explained(_centered_basis([sin(k angle), cos(k angle)]), R)`` for k = start + j step,
-    j < count, one row per k; with ``sign`` (+-1 per sample) the regressors are ``sign`` times
-    them: a level periodic in the angle that acts with the sign of a motion. The harmonics are
-    stepped by angle addition and the centred pair orthonormalised directly (``_pair_basis``): a
-    few passes over the record per harmonic, where a sine, a cosine and an SVD of the n x 2
-    regressors cost tens of them."""
-    sin, cos = np.sin(start * angle), np.cos(start * angle)
-    sin_step, cos_step = np.sin(step * angle), np.cos(step * angle)
-    energy = np.sum(R**2, axis=0)
-    out = np.zeros((count, R.shape[1]))
-    for j in range(count):
-        a, b = (sin, cos) if sign is None else (sign * sin, sign * cos)
-        basis = _pair_basis(a - a.mean(), b - b.mean())
-        if basis:
-            out[j] = sum((u @ R) ** 2 for u in basis) / energy
-        sin, cos = sin * cos_step + cos * sin_step, cos * cos_step - sin * sin_step
-    return out
 
 
 def _real_k(angle: np.ndarray, r: np.ndarray, lo: float, hi: float, sign: np.ndarray | None = None) -> float:
