@@ -18,7 +18,7 @@ from .assets import load_model
 from .coupling.kernels import joint_traces, settled_states, settled_transmission
 from .coupling.layout import NSTATE, STATE_NAMES, WP, WPL
 from .coupling.plugin import PLUGIN_NAME, block_for
-from .joint import JointParams
+from .joint import GROUND, JointParams
 from .params import check, substeps
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -83,6 +83,16 @@ class JointIndex:
     gear_ratio: float
     actuator: int         # actuator driving the motor joint (-1: none)
     k_m: float
+
+    def require_actuator(self) -> None:
+        """Raise ``ValueError`` saying why nothing drives this joint's motor, if nothing does."""
+        if self.actuator >= 0:
+            return
+        motor = self.params.motor_joint
+        if motor == GROUND:
+            raise ValueError(f"joint instance {self.instance}'s motor_joint is {GROUND!r} (a fixed input): there is "
+                             "no motor to drive; name the rotor's joint")
+        raise ValueError(f"joint instance {self.instance} has no actuator on its motor joint {motor!r}")
 
     def steps(self, model: mujoco.MjModel) -> tuple[float, float, float]:
         """(h, h/J of the motor dof, h/J of the link dof; 0 for a side fixed to the world), as the
@@ -219,8 +229,7 @@ class Simulator:
         ctrl = np.zeros((u2.shape[0] * self.substeps, self.model.nu))
         first = self.applied(np.broadcast_to(before, u2[:1].shape))[0]
         for j, ji in enumerate(self.joints):
-            if ji.actuator < 0:
-                raise ValueError(f"joint instance {j} has no actuator on its motor joint")
+            ji.require_actuator()
             ctrl[:, ji.actuator] = held_controls(self.applied(u2)[:, j] / ji.k_m, self.substeps, first[j] / ji.k_m)
         return ctrl
 

@@ -225,6 +225,7 @@ def test_rollout_matches_mj_step(model):
     ({"friction": "lugre"}, "friction='lugre'"),
     ({"hysteresis.mu": "1.5"}, "mu=1.5"),
     ({"link_joint": "nosuchjoint"}, "nosuchjoint"),
+    ({"friction.fc": ""}, "'friction.fc' has an empty value"),
 ])
 def test_bad_plugin_config_is_a_one_line_error(config, needle):
     spec = build_arm()
@@ -234,6 +235,16 @@ def test_bad_plugin_config_is_a_one_line_error(config, needle):
         load_model(spec)
     message = str(err.value)
     assert needle in message and "\n" not in message.strip()
+
+
+def test_a_fixed_input_loads_but_has_no_motor_to_drive():
+    """motor_joint "world" holds the gear's input still: a valid joint, which an input torque
+    cannot drive; the simulator says why in one line."""
+    from mjjoint.sim import Simulator
+    sim = Simulator(load_model(build_arm(ArmSpec(), JointParams(motor_joint="world"))))
+    with pytest.raises(ValueError, match=r"motor_joint is 'world' \(a fixed input\)") as err:
+        sim.controls(np.zeros(10))
+    assert "\n" not in str(err.value)
 
 
 def test_locked_output_keeps_link_still():

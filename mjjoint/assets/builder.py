@@ -230,6 +230,10 @@ def load_model(source: str | Path | mujoco.MjSpec | None = None, **kwargs) -> mu
     for plugin in spec.plugins:
         if plugin.plugin_name == PLUGIN_NAME:
             try:
+                empty = [k for k, v in plugin.config.items() if v == ""]
+                if empty:  # the compiled model keeps no difference between an empty value and none
+                    raise ValueError(f"config key {empty[0]!r} has an empty value, which MuJoCo reads as absent: "
+                                     "give a value or leave the key out")
                 for cfg in split_config(dict(plugin.config)):
                     params = JointParams.from_config(cfg)
                     for name in (params.motor_joint, params.link_joint):

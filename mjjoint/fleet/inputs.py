@@ -14,6 +14,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..modelfile import brief
+
 RECORDING_SUFFIXES = (".csv", ".npz", ".mat")
 GLOB_CHARS = frozenset("*?[")
 # Per-recording options a manifest may set: what differs between robots and their logs.
@@ -80,8 +82,8 @@ def _manifest(path: Path) -> list[Entry]:
     if suffix == ".toml":
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{path}: not valid TOML ({exc})") from None
+        except ValueError as exc:  # a decode error, or an integer too long to convert
+            raise ValueError(f"{path}: not valid TOML ({' '.join(str(exc).split())})") from None
         extra = set(data) - {"recording"}
         if extra or not isinstance(data.get("recording", []), list):
             raise ValueError(f"{path}: a manifest holds only [[recording]] tables (found {sorted(extra) or 'recording'})")
@@ -106,7 +108,7 @@ def _csv_row(path: Path, line: int, row: dict) -> dict:
 
 def _entry(base: Path, where: str, row, key: str) -> Entry:
     if not isinstance(row, dict):
-        raise ValueError(f"{where}: a recording's entry is a table of keys, not {str(row)[:40]!r}")
+        raise ValueError(f"{where}: a recording's entry is a table of keys, not {brief(row)}")
     allowed = (key, "name", *OPTIONS)
     unknown = [k for k in row if k not in allowed]
     if unknown:

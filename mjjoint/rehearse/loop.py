@@ -51,8 +51,7 @@ def run_loop(model: mujoco.MjModel, theta_ref: np.ndarray, controller: Controlle
     if len(joints) != 1:
         raise ValueError(f"the closed loop drives one joint; the model has {len(joints)}")
     ji = joints[0]
-    if ji.actuator < 0:
-        raise ValueError("the joint has no actuator on its motor joint")
+    ji.require_actuator()
     if model.actuator_ctrllimited[ji.actuator]:  # MuJoCo would clamp silently: the log would lie
         top = float(np.min(np.abs(model.actuator_ctrlrange[ji.actuator]))) * ji.k_m
         if controller.u_max > top:
