@@ -12,6 +12,7 @@ true sensors' floor.
     python scripts/outside_benchmark.py --cases control cogging --seeds 0 1
     python scripts/outside_benchmark.py --no-torque           # the same joints, no torque sensor
     python scripts/outside_benchmark.py --rate 250            # recorded (and controlled) at 250 Hz
+    python scripts/outside_benchmark.py --program moves       # a robot's point-to-point moves
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ import sys
 from pathlib import Path
 
 from mjjoint.benchmark.independent.cases import CASES
-from mjjoint.benchmark.independent.record import Excitation
+from mjjoint.benchmark.independent.record import PROGRAMS, Excitation
 from mjjoint.benchmark.independent.score import run_case
 
 
@@ -32,6 +33,9 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=6.0, help="recording length [s] (default 6)")
     ap.add_argument("--rate", type=float, default=Excitation.rate,
                     help=f"sample rate [Hz] of the recordings and of the PD loop (default {Excitation.rate:g})")
+    ap.add_argument("--program", default=Excitation.program, choices=PROGRAMS,
+                    help="the link reference: a slow sine, multisine and dwell (sweep, default) or a robot's "
+                         "point-to-point moves (moves)")
     ap.add_argument("--out", type=Path, default=Path("out/outside"))
     ap.add_argument("--no-torque", action="store_true",
                     help="leave the torque column out of the recordings (a joint with no torque sensor)")
@@ -45,7 +49,7 @@ def main(argv=None) -> int:
             say = None if args.quiet else (lambda m, c=name: print(f"[{c}] {m}", flush=True))
             try:
                 s = run_case(name, seed, args.out / f"{name}-{seed}", args.duration, progress=say,
-                             torque=not args.no_torque, rate=args.rate)
+                             torque=not args.no_torque, rate=args.rate, program=args.program)
             except FloatingPointError as e:
                 print(f"[{name}] not recorded: {e}", flush=True)
                 failed.append(f"{name}-{seed}")

@@ -193,6 +193,26 @@ def test_every_case_draws_a_plant_and_the_reference_is_continuous():
     assert np.max(np.abs(np.diff(ref))) < 2e-3   # no jumps: a closed loop would kick the joint
 
 
+def test_moves_rest_between_minimum_jerk_profiles_within_the_sweep():
+    """The point-to-point program: from 0, each move at rest where it starts and ends (velocity and
+    acceleration zero at the joins: no jump for the loop to kick at), targets within +-sweep and at
+    least sweep/2 apart, several moves in 6 s; an unknown program refused with the allowed ones."""
+    t = np.arange(0.0, 6.0, 1e-3)
+    ex = Excitation(seed=3, program="moves")
+    ref = ex.reference(t)
+    v = np.diff(ref) / 1e-3
+    assert ref[0] == 0.0 and np.max(np.abs(v)) < 1.875 * 2 * ex.sweep / 0.8 + 1e-9
+    assert np.max(np.abs(np.diff(v))) < 1e-2                    # smooth: no step in the velocity
+    moving = np.abs(v) > 1e-9
+    starts, stops = np.flatnonzero(moving[1:] & ~moving[:-1]) + 1, np.flatnonzero(~moving[1:] & moving[:-1]) + 1
+    rests = ref[np.concatenate([[0], stops])]
+    assert len(stops) >= 3 and np.all(np.abs(rests) <= ex.sweep)
+    assert np.all(np.abs(np.diff(rests)) >= ex.sweep / 2)
+    assert len(starts) == len(stops) or len(starts) == len(stops) + 1
+    with pytest.raises(ValueError, match="allowed: sweep, moves"):
+        Excitation(program="steps")
+
+
 def test_a_case_records_at_the_rate_asked_and_a_rate_of_none_is_refused():
     """The sample rate (and the PD loop's) is the case's: 250 Hz gives 4 ms samples, the same
     plant and reference; no rate is refused with its range."""

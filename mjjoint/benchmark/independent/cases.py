@@ -225,9 +225,10 @@ CASES: dict[str, tuple[str, Callable]] = {
 CONTROLS = ("control", "coarse_encoder")
 
 
-def make_case(name: str, seed: int, duration: float = 6.0, rate: float = Excitation.rate) -> OutsideCase:
+def make_case(name: str, seed: int, duration: float = 6.0, rate: float = Excitation.rate,
+              program: str = Excitation.program) -> OutsideCase:
     """Case ``name``'s truth drawn for ``seed``, recorded for ``duration`` [s] at ``rate`` [Hz] (the
-    PD loop runs at the sample rate)."""
+    PD loop runs at the sample rate) under the excitation ``program``."""
     if name not in CASES:
         raise ValueError(f"unknown out-of-regime case {name!r} (allowed: {', '.join(CASES)})")
     if not rate > 0:
@@ -237,5 +238,6 @@ def make_case(name: str, seed: int, duration: float = 6.0, rate: float = Excitat
     plant, extra = build(r)
     assert plant.link_inertia + (plant.rod.tip_inertia if plant.rod else 0) >= MIN_LINK_INERTIA
     sensors = extra.pop("sensors", Sensors())
-    excitation = Excitation(duration=duration, rate=rate, seed=seed, sweep=extra.pop("sweep", Excitation.sweep))
+    excitation = Excitation(duration=duration, rate=rate, seed=seed, sweep=extra.pop("sweep", Excitation.sweep),
+                            program=program)
     return OutsideCase(name, seed, what, plant, sensors, excitation, **extra)

@@ -1,8 +1,9 @@
 """Closed-loop recordings of the independent plant, written as the CSV ``mjjoint diagnose`` reads.
 
 The excitation is not the development set's lab programme (down-chirp, sweep, steps): a link
-reference of a slow sine through gravity, a random-phase multisine, and a dwell-and-reverse
-segment, tracked by a PD position loop on the motor encoder at the sample rate. Sensors: the
+reference tracked by a PD position loop on the motor encoder at the sample rate, either a slow
+sine through gravity, a random-phase multisine, and a dwell-and-reverse segment (``"sweep"``), or
+a robot's point-to-point moves, each a minimum-jerk profile between rests (``"moves"``). Sensors: the
 motor angle quantised to ``motor_bits`` per revolution, the link angle to ``link_bits`` (read
 ``link_skew`` late: a timing skew between the encoders), the transmission torque through the
 cell's low-pass (``torque_filter``) with white noise.
@@ -29,6 +30,9 @@ class Sensors:
     torque_filter: float = 0.0      # [s] time constant of the torque cell's first-order low-pass
 
 
+PROGRAMS = ("sweep", "moves")
+
+
 @dataclass(frozen=True)
 class Excitation:
     duration: float = 6.0
@@ -37,9 +41,33 @@ class Excitation:
     multisine: float = 0.002        # [rad] link amplitude of each multisine component
     bandwidth: float = 6.0          # [Hz] closed-loop bandwidth of the PD loop
     seed: int = 0
+    program: str = "sweep"          # one of PROGRAMS
+
+    def __post_init__(self) -> None:
+        if self.program not in PROGRAMS:
+            raise ValueError(f"unknown excitation program {self.program!r} (allowed: {', '.join(PROGRAMS)})")
 
     def reference(self, t: np.ndarray) -> np.ndarray:
-        """Link reference theta_ref(t) [rad], continuous: the slow sine's clock stops for a dwell
+        """Link reference theta_ref(t) [rad], continuous, starting at 0 (the program's)."""
+        return self._moves(t) if self.program == "moves" else self._sweep(t)
+
+    def _moves(self, t: np.ndarray) -> np.ndarray:
+        """Moves to targets drawn within +-``sweep``, each at least sweep/2 from the last, in 0.8-1.6 s
+        along 10 s^3 - 15 s^4 + 6 s^5 (rest to rest), after a rest of 0.15-0.5 s."""
+        rng = np.random.default_rng(self.seed)
+        ref, start, at = np.zeros_like(t), 0.0, 0.0
+        while start < self.duration:
+            rest, move = rng.uniform(0.15, 0.5), rng.uniform(0.8, 1.6)
+            target = at
+            while abs(target - at) < 0.5 * self.sweep:
+                target = rng.uniform(-self.sweep, self.sweep)
+            s = np.clip((t - start - rest) / move, 0.0, 1.0)
+            ref = np.where(t >= start, at + (target - at) * s**3 * (10.0 - 15.0 * s + 6.0 * s * s), ref)
+            start, at = start + rest + move, target
+        return ref
+
+    def _sweep(self, t: np.ndarray) -> np.ndarray:
+        """The slow sine's clock stops for a dwell
         of 0.8 s, in which the multisine fades out and one 2 Hz back-and-forth cycle reverses
         the motor from rest."""
         rng = np.random.default_rng(self.seed)

@@ -76,12 +76,12 @@ def score_diagnosis(case: OutsideCase, diag, seconds: float) -> OutsideScore:
 
 
 def run_case(name: str, seed: int, folder: Path, duration: float = 6.0, progress=None, options=None,
-             torque: bool = True, rate: float = Excitation.rate) -> OutsideScore:
-    """Record the case at ``rate`` [Hz], write its CSV (without the torque column where ``torque``
+             torque: bool = True, rate: float = Excitation.rate, program: str = Excitation.program) -> OutsideScore:
+    """Record the case at ``rate`` [Hz] under the excitation ``program``, write its CSV (without the torque column where ``torque``
     is false: a joint with no torque sensor, as most robots are), diagnose the CSV as a user would
     (``options``: a ``DiagnoseOptions``, default the command line's), and score it."""
     from ... import diagnose  # the public API, as ``mjjoint diagnose`` runs it
-    case = make_case(name, seed, duration, rate)
+    case = make_case(name, seed, duration, rate, program)
     cols = record(case.plant, case.excitation, case.sensors, seed)
     path = write_csv(folder / "recording.csv", {k: v for k, v in cols.items() if torque or k != "tau"})
     start = time.perf_counter()
