@@ -5,7 +5,8 @@ Each round:
 2. its prediction residual is located (``locate``): which signal, when, under which condition;
    and, where the gear torque is recorded, the rotor's torque balance (``balance``);
 3. every effect not yet in the model (whose prerequisites are; those screened on request only
-   where the options name them or the recording shows their sign: ``recorded_signs``) is
+   where the options name them or the recording shows their sign: ``recorded_signs``, and
+   the base fit's rotor creeping through the recording's rests, ``rests.creep``) is
    screened by fitting its own parameters and those of the effects it refines, the rest held
    at their fitted values, on
    the training windows; if the best one's gain is material but inconsistent over windows
@@ -130,6 +131,7 @@ from .features import operating_conditions, reversal_proximity
 from .floor import EXPLAINED_RATIO, WINDOWING_TRUST, Floor, judged, noise_floor
 from .gear_law import ENERGY_RETURNED, law_energy, law_ratio, law_site
 from .locate import REVERSAL_WINDOW_S, locate, located_conditions
+from .rests import ROTOR_HOLDS, creep
 
 MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
 
@@ -415,6 +417,9 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     with phases("base fit"):
         current = _base_fit(predictor, base, options, say, iterations)
     signs = recorded_signs(predictor)
+    held = creep(predictor, current)
+    if held is not None and held.shown:
+        signs[ROTOR_HOLDS] = held.describe()
     for text in signs.values():
         say(f"{text}; screened with the catalogue: {', '.join(opened_by(signs))}")
     initial = current

@@ -294,7 +294,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            (Param("dynamic_friction.k", 1000.0, 10.0, 1e5, unit="1/rad", dim="1/position"),
             Param("dynamic_friction.b", LAG_GAIN, 0.1, 1e4, unit="N m/rad", dim="force/position")),
            _dynamic, requires=("coulomb_friction",), variants=_lag_variants,
-           evidence=("reversal", "hysteresis", "lag"), acts_under="reversal", plot="motor_velocity",
+           # its pre-sliding spring holds the rotor at rest as dry friction does
+           evidence=("reversal", "hysteresis", "lag", "rotor_holds"), acts_under="reversal", plot="motor_velocity",
            direct_drive=True, term="friction",
            read=_friction_read(lambda f: {"dynamic_friction.k": f.k, "dynamic_friction.b": f.b},
                                lambda f: isinstance(f, TwoSEP))),
@@ -323,7 +324,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("sticking_friction", "dry motor friction that holds the rotor at rest up to its break-away "
            "level: sgn(w) exact, where the base's is regularised over v_eps and the rotor creeps",
            (), lambda m, v: _set_friction(m, v_eps=0.0), requires=("coulomb_friction",),
-           excludes=("dynamic_friction",), evidence=MOTOR_SIGN, plot="motor_velocity", direct_drive=True,
+           excludes=("dynamic_friction",), evidence=(*MOTOR_SIGN, "rotor_holds"), plot="motor_velocity",
+           direct_drive=True,
            term="friction", on_request=True,
            read=_friction_read(lambda f: {FRICTION_V_EPS: 0.0},
                                lambda f: isinstance(f, StaticFriction) and f.v_eps == 0.0)),
