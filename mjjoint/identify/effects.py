@@ -318,14 +318,17 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            evidence=("coulomb", "sin_theta"), plot="motor_velocity", term="friction",
            read=_friction_read(lambda f: {"load_dependent_friction.gain": f.load_gain},
                                lambda f: getattr(f, "load_gain", 0.0) > 0)),
-    # No parameter: the exact sign is a form of the Coulomb term. Asked for, not screened by
-    # default: with no parameter it wins every tie with 2SEP by parsimony, where 2SEP refitted
-    # can predict far better (docs/diagnosis.md, "Model structures").
+    # No parameter: the exact sign is a form of the Coulomb term. Screened on request or where the
+    # base creeps through the recording's rests (diagnosis.rests), not on every recording: with no
+    # parameter it wins every tie with 2SEP by parsimony, where 2SEP refitted can predict far
+    # better (docs/diagnosis.md, "Model structures").
     Effect("sticking_friction", "dry motor friction that holds the rotor at rest up to its break-away "
            "level: sgn(w) exact, where the base's is regularised over v_eps and the rotor creeps",
            (), lambda m, v: _set_friction(m, v_eps=0.0), requires=("coulomb_friction",),
            excludes=("dynamic_friction",), evidence=(*MOTOR_SIGN, "rotor_holds"), plot="motor_velocity",
-           direct_drive=True,
+           # a base whose rotor creeps through the rests slows it with the link's drag, the gear's
+           # damper and the gravity that loads it: a screen holding those misses the hold
+           stand_ins=("load_friction", "transmission_damping", "gravity"), direct_drive=True,
            term="friction", on_request=True,
            read=_friction_read(lambda f: {FRICTION_V_EPS: 0.0},
                                lambda f: isinstance(f, StaticFriction) and f.v_eps == 0.0)),
