@@ -10,6 +10,7 @@ import pytest
 import mjjoint
 from mjjoint.assets import ArmSpec
 from mjjoint.diagnosis.loop import candidates_for
+from mjjoint.diagnosis.rests import ROTOR_HOLDS
 from mjjoint.identify.effects import check_effects
 from mjjoint.identify.fit import fit
 from mjjoint.identify.structure import Structure
@@ -51,11 +52,15 @@ def test_each_recording_prefers_its_own_form(truth):
     assert cost[other] > 100 * cost[truth], cost
 
 
-def test_it_is_screened_when_asked_and_excludes_2sep():
+def test_it_is_screened_when_asked_or_shown_and_excludes_2sep():
     with pytest.raises(ValueError, match="cannot be in one model with"):
         check_effects(["coulomb_friction", "dynamic_friction", "sticking_friction"])
     static = Structure.create(("coulomb_friction",), ArmSpec(), N)
     assert "sticking_friction" not in candidates_for(static)  # by default: a tie with 2SEP would go to it
+    # ... unless the base creeps through the recording's rests (diagnosis.rests)
+    assert "coulomb_friction+sticking_friction" in candidates_for(Structure.create((), ArmSpec(), N),
+                                                                  shown=(ROTOR_HOLDS,))
+    assert "sticking_friction" in candidates_for(static, shown=(ROTOR_HOLDS,))
     assert candidates_for(static, ("sticking_friction", "dynamic_friction")) == ["sticking_friction",
                                                                                 "dynamic_friction"]
     with_2sep = Structure.create(("coulomb_friction", "dynamic_friction"), ArmSpec(), N)

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
+from ..assets.drive import DriveSpec
 from ..identify.effects import FRICTION_V_EPS, plant_v_eps
 from ..identify.fit import FitResult
 from ..identify.twin import sensor_noise
@@ -53,8 +54,9 @@ def rest_mask(m: Measured) -> np.ndarray:
 @dataclass(frozen=True)
 class Creep:
     share: float   # of the cost samples within a rest
-    speed: float   # the model's median rotor speed there [rad/s, m/s for a drive]
+    speed: float   # the model's median rotor speed there
     v_eps: float   # the model's friction band
+    unit: str = "rad/s"  # of both (m/s for a linear drive)
 
     @property
     def shown(self) -> bool:
@@ -62,8 +64,8 @@ class Creep:
 
     def describe(self) -> str:
         return (f"the rotor rests in {self.share:.0%} of the recording (still within a band of a few encoder counts "
-                f"for {REST_S:g} s or longer) where the base model's creeps at {self.speed:.3g} (median; its "
-                f"friction's band {self.v_eps:.3g}): a friction that holds the rotor at rest")
+                f"for {REST_S:g} s or longer) where the base model's creeps at {self.speed:.3g} {self.unit} (median; its "
+                f"friction's band {self.v_eps:.3g} {self.unit}): a friction that holds the rotor at rest")
 
 
 def creep(predictor: Predictor, result: FitResult) -> Creep | None:
@@ -81,5 +83,7 @@ def creep(predictor: Predictor, result: FitResult) -> Creep | None:
         return None
     dt = np.diff(at, axis=1) / predictor.m.rate
     speed = np.abs(np.diff(q, axis=1)) / dt
-    v_eps = result.structure.settings.get(FRICTION_V_EPS, plant_v_eps(result.structure.nominal))
-    return Creep(share=float(still.mean()), speed=float(np.median(speed[pairs])), v_eps=float(v_eps))
+    nominal = result.structure.nominal
+    v_eps = result.structure.settings.get(FRICTION_V_EPS, plant_v_eps(nominal))
+    return Creep(share=float(still.mean()), speed=float(np.median(speed[pairs])), v_eps=float(v_eps),
+                 unit="m/s" if isinstance(nominal, DriveSpec) else "rad/s")
