@@ -37,27 +37,29 @@ MIN_EFFECT = 0.1
 MAX_STEPS = 2000          # real periods scanned at most (a longer travel is scanned coarser)
 
 
-def motor_balance(conditions: Mapping[str, np.ndarray]) -> np.ndarray | None:
+def motor_balance(conditions: Mapping[str, np.ndarray], moving: np.ndarray | None = None) -> np.ndarray | None:
     """The residual r of the rotor's balance (module doc) from ``features.operating_conditions``'
-    arrays; None without a recorded gear torque."""
+    arrays, fitted and kept where ``moving`` (default: everywhere), zero elsewhere; None without a
+    recorded gear torque."""
     if "tau" not in conditions:
         return None
+    moving = np.ones(len(conditions["qd"]), dtype=bool) if moving is None else np.asarray(moving, dtype=bool)
     qd, u, sign = conditions["qd"], conditions["u"], np.sign(conditions["qd"])
     speed = float(np.quantile(np.abs(qd), 0.95))
     stribeck = [sign * np.exp(-np.abs(qd) / (f * speed)) for f in STRIBECK_SPEEDS] if speed > 0 else []
     cols = np.column_stack([conditions["qdd"], sign, qd, np.ones_like(qd), conditions["tau"], conditions["ud"],
                             *stribeck])
-    coef, *_ = np.linalg.lstsq(cols, u, rcond=None)
-    return u - cols @ coef
+    coef, *_ = np.linalg.lstsq(cols[moving], u[moving], rcond=None)
+    return np.where(moving, u - cols @ coef, 0.0)
 
 
-def balance_location(t: np.ndarray, conditions: Mapping[str, np.ndarray], *, n_windows: int = 3,
-                     min_width: float = 0.1, n_permutations: int = 19, min_effect: float = MIN_EFFECT,
-                     seed: int = 0) -> SignalLocation | None:
-    """``locate``'s account of one signal for the rotor's balance: its residual windows and the
-    angle-periodic conditions' scores, on the same scale and noise threshold; None without a
-    recorded gear torque or a varying input."""
-    r = motor_balance(conditions)
+def balance_location(t: np.ndarray, conditions: Mapping[str, np.ndarray], *, moving: np.ndarray | None = None,
+                     n_windows: int = 3, min_width: float = 0.1, n_permutations: int = 19,
+                     min_effect: float = MIN_EFFECT, seed: int = 0) -> SignalLocation | None:
+    """``locate``'s account of one signal for the rotor's balance (``motor_balance``, where
+    ``moving``): its residual windows and the angle-periodic conditions' scores, on the same scale
+    and noise threshold; None without a recorded gear torque or a varying input."""
+    r = motor_balance(conditions, moving)
     u = np.asarray(conditions.get("u", ()), dtype=float)
     if r is None or not np.any(r) or not np.std(u) > 0:
         return None

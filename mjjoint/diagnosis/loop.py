@@ -131,7 +131,7 @@ from .features import operating_conditions, reversal_proximity
 from .floor import EXPLAINED_RATIO, WINDOWING_TRUST, Floor, judged, noise_floor
 from .gear_law import ENERGY_RETURNED, law_energy, law_ratio, law_site
 from .locate import REVERSAL_WINDOW_S, locate, located_conditions
-from .rests import ROTOR_HOLDS, creep
+from .rests import ROTOR_HOLDS, creep, rest_mask
 
 MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
 
@@ -278,10 +278,11 @@ def residual_location(predictor: Predictor, structure: Structure, seed: int = 0)
     where = locate(t, meas, sim, cond, seed=seed).as_dict()
     # A torque on the rotor as a function of its angle, however filtered. The balance is the
     # recording's alone, whatever the model: located once per recording and seed, not each round
-    # (its scan of real periods is the costliest condition on a long travel).
+    # (its scan of real periods is the costliest condition on a long travel). A resting rotor's
+    # friction is whatever holds it: no law of the motion, so the rests are left out.
     balances = _BALANCES.setdefault(predictor, {})
     if seed not in balances:
-        balances[seed] = balance_location(t, cond, seed=seed)
+        balances[seed] = balance_location(t, cond, moving=~rest_mask(m)[span], seed=seed)
     if balances[seed] is not None:
         where["signals"][BALANCE] = balances[seed].as_dict()
     return where
@@ -840,6 +841,7 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
             ref = fit(predictor, current.structure, max_iter=options.fit_iter)
         say(f"  reference, the model refitted: held-out cost {current.cost_test:.4g} -> {ref.cost_test:.4g}")
     names = candidates_for(ref.structure, options.candidates, predictor.signals, signs)
+    opened = opened_by(signs)
     trials = [(name, values, settings) for name in names
               for values, settings in _candidate_variants(parts(name)[-1], where, ref.structure)]
     say(f"round {clock.round} of {clock.rounds}: screening {len(trials)} candidate fits"
@@ -891,6 +893,8 @@ def _screen(predictor: Predictor, current: FitResult, where: dict, options: Diag
                             and training_ratio(predictor, res, null, from_start=True) < 1.0):
                         descending.append(i - 1)
                 trial = again
+        if res.coarse_capped and parts(name)[-1] in opened and i - 1 not in descending:
+            descending.append(i - 1)
         if name not in best_of or res.cost_test < best_of[name].cost_test:
             best_of[name] = res
         clock.record(time.perf_counter() - start)
