@@ -168,3 +168,15 @@ def test_a_base_its_step_cannot_hold_is_fitted_before_anything_is_screened(tmp_p
     assert score.nrmse_before < 0.1, score.nrmse_before
     assert [line.split()[1] for line in said if line.startswith("adding ")] == ["backlash"], score.verdict
     assert score.named == ["backlash"] and score.passed
+
+
+@pytest.mark.slow
+def test_point_to_point_moves_through_a_wide_play_add_no_skew(tmp_path):
+    """Seed 0's moves: the base's regularised friction creeps through the rests (3.27 rad/s,
+    its band 1) where the plant's holds. The exact sign's screen, opened by that sign, stood on
+    the subset at the null's cost still descending and was left there; a skew of the link encoder
+    was named instead (-17.8 %). Finished, the exact sign is the best candidate, nothing passes,
+    and the verdict says the model does not explain the rests (~2.5 min)."""
+    score = run_case("backlash_wide", 0, tmp_path, program="moves")
+    assert not score.false_additions, score.verdict
+    assert score.passed and "the rotor rests" in score.verdict

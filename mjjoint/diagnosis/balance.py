@@ -13,7 +13,9 @@ recorded gear torque and driven through a lag, takes,
 each coefficient fitted by least squares (so neither u's unit nor the gear ratio need be known;
 the v_i are locate's Stribeck widths, u' stands for an input that acts late). Each term the
 rotor can have whatever its angle takes out of r what would otherwise follow the motion and so
-project onto some period of q.
+project onto some period of q. A resting rotor's friction is whatever holds it, no law of the
+motion: the rests are left out (a caller's ``moving`` mask), or each rest's holding level, at the
+rest's angle, passes for a friction level periodic in q.
 
 Only the conditions of an angle-periodic torque are scored on it, at real periods that repeat
 at least PERIODS times over the recorded travel: the friction's other structure in r is the

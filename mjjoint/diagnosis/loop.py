@@ -941,7 +941,8 @@ def continued(costs: list[float], null: float, names: list[str], descending=()) 
     ``_decide`` prefers when it passes. The ``descending`` go on too: screens a finer step brought
     near the null, or another start below it in training (``_restarted_screen``), whose subset
     phase still descended at its iteration cap, so their subset point ranks nothing (a rod's
-    modes, started at the located resonance, end far from there)."""
+    modes, started at the located resonance, end far from there); so do those a sign opened that
+    still descended (the exact sign, from a creeping base's values)."""
     order = sorted(range(len(costs)), key=lambda i: costs[i] if np.isfinite(costs[i]) else np.inf)
     gains = [null - c if np.isfinite(c) else -np.inf for c in costs]
     best = gains[order[0]]
