@@ -219,11 +219,13 @@ def parallel(predictor: Predictor, start: Structure, repeats: int) -> dict:
 # ---- (c) --------------------------------------------------------------------------------
 def sysid_reason() -> str | None:
     """Why mujoco.sysid cannot run here (None: it can)."""
+    import importlib
+
     from mujoco import sysid
     if hasattr(sysid, "optimize"):
         return None
     try:  # the package's __init__ swallows the ModuleNotFoundError of its optional extra
-        import mujoco.sysid._src.optimize  # noqa: F401
+        importlib.import_module("mujoco.sysid._src.optimize")
     except ModuleNotFoundError as e:
         return f"mujoco.sysid needs the optional extra mujoco[sysid] ({e}); pip install 'mujoco[sysid]==3.17.0'"
     return "mujoco.sysid does not export optimize"
