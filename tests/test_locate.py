@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from mjjoint.diagnosis.features import operating_conditions, reversal_proximity
-from mjjoint.diagnosis.locate import condition_scores, locate, nrmse, residual_windows
+from mjjoint.diagnosis.locate import MAX_LAG_S, condition_scores, locate, nrmse, residual_windows
 
 FS = 1000.0   # [Hz]
 N = 50.0      # gear ratio
@@ -275,6 +275,20 @@ def test_simulation_shifted_by_5_ms_reports_the_lag(seed, sign):
     assert top.params["lag_ms"] == pytest.approx(5.0 * sign, abs=0.5)
     order = "measured behind simulated" if sign > 0 else "measured ahead of simulated"
     assert re.match(rf"lag of (4\.[5-9]|5\.[0-5]) ms, {order}", top.description)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_a_shift_beyond_the_searched_range_is_no_lag(seed):
+    """Shifted by 0.2 s, four times MAX_LAG_S, the correlation peaks on the search's bound; shifting
+    by that bound removes part of the residual all the same (0.30 on seed 0's draw before the bound
+    was ruled out), which is no located lag."""
+    rng = np.random.default_rng(seed)
+    ex = experiment(rng)
+    sig = multisine(rng, ex.t)
+    measured = np.interp(ex.t - 0.2, ex.t, sig)
+    lag = by_name(scores_of(ex, measured - sig, measured=measured))["lag"]
+    assert abs(lag.params["lag_ms"]) == pytest.approx(1e3 * MAX_LAG_S)
+    assert lag.score == 0.0 and not lag.significant
 
 
 @pytest.mark.parametrize("seed", SEEDS)

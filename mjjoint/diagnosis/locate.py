@@ -436,6 +436,9 @@ def _lag(dt: float, measured: np.ndarray) -> _Condition:
         rows = inner[:, None] - np.round(lags).astype(int)
         shifted = measured[inner, None] - sims[rows, np.arange(R.shape[1])]
         scores = 1.0 - np.var(shifted, axis=0) / np.var(R[inner], axis=0)
+        # A best shift on the search's bound is no located lag: a residual that drifts slowly
+        # correlates best at the largest shift allowed, whatever its cause.
+        scores[np.abs(lags) >= max_lag] = 0.0
         return np.clip(scores, 0.0, 1.0), {"lag_ms": float(lags[0] * dt * 1e3)}
 
     def describe(score: float, p: dict[str, float]) -> str:
