@@ -202,10 +202,11 @@ def load_model_file(path: str | Path) -> ModelFile:
         data = tomllib.loads(text) if suffix == ".toml" else yaml.safe_load(text)
         return parse_model(data)
     except (ValueError, yaml.YAMLError, OSError) as exc:
-        raise ValueError(f"{path}: {_one_line(exc)}") from None
+        raise ValueError(f"{path}: {one_line(exc)}") from None
 
 
-def _one_line(exc: Exception) -> str:
+def one_line(exc: Exception) -> str:
+    """A parser's or compiler's error on one line: YAML's problem and where, else its text."""
     mark = getattr(exc, "problem_mark", None)  # YAML: the problem and where, without the excerpt
     if mark is not None and getattr(exc, "problem", None):
         return f"{exc.problem} (at line {mark.line + 1}, column {mark.column + 1})"

@@ -13,7 +13,7 @@ from typing import Any
 import mujoco
 import yaml
 
-from ..modelfile import ModelFile, Simulation, _one_line, as_section, from_section, load_model_file, parse_model
+from ..modelfile import ModelFile, Simulation, as_section, from_section, load_model_file, one_line, parse_model
 from .builder import load_model
 from .serial import JointSpec, World, build_serial_arm, unit_vector
 
@@ -75,7 +75,7 @@ def load_serial_arm_file(path: str | Path) -> SerialArmFile:
     try:
         return parse_serial_arm(_read_mapping(path))
     except (ValueError, yaml.YAMLError, OSError) as exc:
-        raise ValueError(f"{path}: {_one_line(exc)}") from None
+        raise ValueError(f"{path}: {one_line(exc)}") from None
 
 
 def read_model_file(path: str | Path) -> ModelFile | SerialArmFile:

@@ -14,7 +14,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..modelfile import _one_line, brief
+from ..modelfile import brief, one_line
 
 RECORDING_SUFFIXES = (".csv", ".npz", ".mat")
 GLOB_CHARS = frozenset("*?[")
@@ -83,7 +83,7 @@ def _manifest(path: Path) -> list[Entry]:
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8"))
         except ValueError as exc:  # a decode error, or an integer too long to convert
-            raise ValueError(f"{path}: not valid TOML ({_one_line(exc)})") from None
+            raise ValueError(f"{path}: not valid TOML ({one_line(exc)})") from None
         extra = set(data) - {"recording"}
         if extra or not isinstance(data.get("recording", []), list):
             raise ValueError(f"{path}: a manifest holds only [[recording]] tables (found {sorted(extra) or 'recording'})")

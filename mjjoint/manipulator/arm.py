@@ -8,7 +8,7 @@ import mujoco
 from ..assets import load_model
 from ..assets.serial_file import SerialArmFile, read_model_file
 from ..coupling.plugin import register_model
-from ..modelfile import ModelFile, shipped
+from ..modelfile import ModelFile, one_line, shipped
 from ..sim import joint_indices
 
 
@@ -25,7 +25,7 @@ def arm_model(arm: SerialArmFile | str | Path, n_joints: int, name: str = "arm")
             except ValueError as exc:
                 raise ValueError(f"{name} {path}: {exc}") from None
             except Exception as exc:  # MuJoCo's compiler: its message, on one line
-                raise ValueError(f"{name} {path}: {' '.join(str(exc).split())}") from None
+                raise ValueError(f"{name} {path}: {one_line(exc)}") from None
         else:
             arm = read_model_file(path)
             if isinstance(arm, ModelFile):
