@@ -1,7 +1,7 @@
 """After the designed experiment: which rival does the new recording support?
 
-Both rivals are refitted (every parameter, from their fits to the original recording, and
-from the effect's default values where that fit left the effect on a bound: ``refit``) to the
+Both rivals are refitted (every parameter, from their fits to the original recording and
+from the effect's default values beside them: ``refit``) to the
 new recording by windowed prediction error (``identify.fit``), and compared on the windows the
 fits did not see. Each signal's residuals are weighted by the design's noise floor (1 / sigma_s,
 ``criterion.prediction_floor``), not by the signal's spread as in a plain fit, so that fits and
@@ -55,19 +55,19 @@ class Decision:
 
 
 def refit(predictor: Predictor, rival: Rival, max_iter: int, progress=None) -> FitResult:
-    """``rival`` fitted to ``predictor``'s recording from its old fit; where that fit left the
-    effect's own parameters on a bound (a recording that ties the rivals can fit the effect to
-    nothing: a play of 1e-7 rad, a hysteresis of 1e-6 rad, from which no gradient leads back),
-    also from the effect's default values, keeping the lower training cost. Without the second
-    start, a hysteresis truth's recording was explained better by refitted backlash."""
+    """``rival`` fitted to ``predictor``'s recording from its old fit, and from the effect's
+    default values beside the old fit's shared ones, keeping the lower training cost. A
+    recording that ties the rivals leaves the effect's own parameters anywhere along the tie
+    (a play of 1e-7 rad, a hysteresis of 1e-6 rad, an input offset of the wrong sign traded
+    against the Coulomb level), and from there the new recording's fit can end in a valley
+    that names the other rival: a hysteresis truth's recording explained better by refitted
+    backlash, an offset truth's by friction asymmetry at 10 times the offset's held-out cost."""
     first = fit(predictor, rival.structure, max_iter=max_iter, progress=progress)
     own = rival.drawn
-    x = rival.structure.vector(own)
-    lo, hi = rival.structure.bounds(own)
-    if not own or not np.any(np.isclose(x, lo, rtol=1e-6, atol=0) | np.isclose(x, hi, rtol=1e-6, atol=0)):
-        return first
     params = {p.name: p for p in rival.structure.params}
     start = rival.structure.with_values({n: params[n].initial for n in own})
+    if np.array_equal(start.vector(own), rival.structure.vector(own)):
+        return first
     second = fit(predictor, start, max_iter=max_iter, progress=progress)
     return min((first, second), key=lambda r: r.cost_train)
 
