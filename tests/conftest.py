@@ -17,9 +17,10 @@ def _avx512_kernels() -> None:
     """Run OpenBLAS's AVX-512 kernels wherever the processor has them, before numpy loads.
 
     Some of the diagnosis's paths hang on the last bits of the linear algebra: the README's route
-    names the play with these kernels and stops one round short of it with the Haswell kernels
-    some machines force (``OPENBLAS_CORETYPE``) on the same processor (docs/diagnosis.md, "The
-    README's route, measured"). The suite's expectations were measured with these kernels.
+    takes different paths with OpenBLAS's AVX-512, Haswell and Sandybridge kernels on one
+    processor (docs/diagnosis.md, "The README's route, measured"). Where the processor has
+    AVX-512 the suite runs its own kernels, not the Haswell ones some environments force
+    (``OPENBLAS_CORETYPE``); elsewhere the Haswell kernels OpenBLAS picks itself.
     """
     try:
         flags = Path("/proc/cpuinfo").read_text()

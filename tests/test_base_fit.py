@@ -11,7 +11,7 @@ import pytest
 
 from mjjoint.benchmark.cases import GEAR_RATIO, make_case
 from mjjoint.benchmark.score import write_case_recording
-from mjjoint.diagnosis.loop import UNSTABLE_COST, DiagnoseOptions, _base_fit
+from mjjoint.diagnosis.loop import UNSTABLE_COST, DiagnoseOptions, _base_fit, _off_the_floor
 from mjjoint.identify.fit import fit
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
@@ -45,3 +45,17 @@ def test_a_base_its_step_holds_is_fitted_once(setting):
     said: list[str] = []
     result = _base_fit(predictor, base, DiagnoseOptions(), said.append, None)
     assert not said and result.cost_test == fit(predictor, base).cost_test
+
+
+def test_a_term_the_fit_ran_to_nothing_is_fitted_again_from_its_start(setting):
+    """In log coordinates the gradient along a parameter vanishes at its physical floor: the
+    bearing's viscous drag held there, the LM bends gravity instead and stays."""
+    predictor, base, truth = setting
+    held = fit(predictor, base.with_values({"load_friction.viscous": 1.05e-5}))
+    assert held.structure.values["load_friction.viscous"] < 1e-4
+    said: list[str] = []
+    again = _off_the_floor(predictor, held, base, DiagnoseOptions(), said.append, None)
+    assert any("load_friction.viscous fitted to nothing" in line and line.endswith(": kept") for line in said), said
+    assert again.structure.values["load_friction.viscous"] == pytest.approx(truth.values["load_friction.viscous"], rel=0.1)
+    assert again.cost_test <= 1.05 * fit(predictor, base).cost_test
+    assert _off_the_floor(predictor, again, base, DiagnoseOptions(), said.append, None) is again

@@ -445,3 +445,28 @@ def test_a_refusal_against_a_stalled_base_is_screened_again_once_and_stands_only
     again = dataclasses.replace(stalled, rebased=False, cost_before=0.00065, cost_after=0.0007)
     assert refused([stalled, again]) == ("dynamic_friction",)
     assert standing([stalled, again], []) == [again]                            # refused again: the new one
+
+
+def test_a_tie_does_not_bring_back_the_effect_a_swap_replaced(monkeypatch):
+    """Between rivals of one size a tie is ranked by cost alone; refits that go on descending
+    would trade them back and forth. A step named by a swap keeps its effect against the one it
+    replaced, however much lower that one's tied cost; against another rival the tie rule stands."""
+    from mjjoint.diagnosis import revise as rv
+    current = SimpleNamespace(cost_test=0.001268, structure=SimpleNamespace(nominal=None))
+    swapped = dataclasses.replace(_step("dynamic_friction"), gain=0.352, screen=rv.SWAPPED_FOR + "stribeck_friction")
+    monkeypatch.setattr(rv, "removable", lambda structure, effects: True)
+    monkeypatch.setattr(rv, "without", lambda structure, effects: structure)
+    monkeypatch.setattr(rv, "base_params", lambda nominal: [])
+    monkeypatch.setattr(rv, "fit", lambda *a, **k: SimpleNamespace(cost_test=1.0))
+    monkeypatch.setattr(rv, "_refit", lambda predictor, trial, options: trial)
+    monkeypatch.setattr(rv, "acceptance", lambda predictor, ref, cand, effect, options, floor, max_p:
+                        (1.0 - cand.cost_test / ref.cost_test, {"p": 0.3}, ["paired p = 0.3 > 0.05"]))
+    monkeypatch.setattr(rv, "_fit_variants", lambda *a: SimpleNamespace(cost_test=0.001193 / 0.001268))
+    monkeypatch.setattr(rv, "finish", lambda predictor, first: SimpleNamespace(
+        cost_test=first.cost_test * 0.001268,
+        structure=SimpleNamespace(values={"load_dependent_friction.gain": 0.1}, nominal=None)))
+    for rival, named in (("stribeck_friction", "dynamic_friction"), ("load_dependent_friction", "load_dependent_friction")):
+        monkeypatch.setattr(rv, "rivals", lambda step, *a, r=rival: [r])
+        _, steps, done = revise(None, current, [swapped], {}, DiagnoseOptions(), 1e-6, [].append)
+        assert steps[0].effect == named, rival
+        assert [r.by for r in done] == ([] if named == "dynamic_friction" else [rival])

@@ -153,6 +153,7 @@ class DiagnoseOptions:
     generic: bool = True         # where no catalogued effect explains a located residual, fit the generic forms it points to
     revise: bool = True          # after each addition: stand-in guard, swaps for rivals, removals (diagnosis.revise)
     pairs: bool = True           # no single candidate passes: the two best screens together (diagnosis.pairs)
+    folds: bool = True           # a material gain only the rank test refuses: tested on a second fold as well
 
 
 @dataclass
@@ -487,6 +488,9 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 pair = pair_screen(predictor, ref, screened, rest, options, floor_cost, say)
             if pair is not None and not pair.failed:
                 choice = pair  # its steps' screen says "together with" the other
+        if choice.failed and choice.only_inconsistent and options.folds:
+            with phases("second fold"):
+                choice = second_fold(predictor, ref, choice, options, say)
         best, cand, gain = choice.best, choice.cand, choice.gain
         unresolved = above
         if choice.failed:
@@ -1074,7 +1078,31 @@ def _base_fit(predictor: Predictor, base: Structure, options: DiagnoseOptions, s
         return result
     say(f"  its fitted values are stable at timestep {base.nominal.timestep:.3g} s: fitted on there")
     coarse = fit(predictor, back, max_iter=options.fit_iter, progress=iterations)
-    return coarse if coarse.cost_test < UNSTABLE_COST else result
+    return _off_the_floor(predictor, coarse, base, options, say, iterations) if coarse.cost_test < UNSTABLE_COST else result
+
+
+# A parameter within this factor of its physical lower bound is fitted to nearly nothing
+# (``_off_the_floor``): a decade above the least the model resolves.
+FLOOR_FACTOR = 10.0
+
+
+def _off_the_floor(predictor: Predictor, result: FitResult, start: Structure, options: DiagnoseOptions, say,
+                   iterations) -> FitResult:
+    """``result``, or the fit again with the parameters it ran down to a physical lower bound
+    back at their ``start`` values, where that reaches the lower training cost. A fit from a
+    start its step cannot hold takes its first steps far from any plant and can run a term to
+    nothing on the way; in log coordinates the gradient along such a parameter vanishes at
+    its floor, and no LM step brings it back."""
+    floored = [n for n in result.structure.near_physical_floor(FLOOR_FACTOR)
+               if n not in start.near_physical_floor(FLOOR_FACTOR)]
+    if not floored:
+        return result
+    again = fit(predictor, result.structure.with_values({n: start.values[n] for n in floored}),
+                max_iter=options.fit_iter, progress=iterations)
+    kept = lowest([result, again])
+    say(f"  {', '.join(floored)} fitted to nothing: fitted again from its start, training cost "
+        f"{result.cost_train:.4g} -> {again.cost_train:.4g}: {'kept' if kept.structure is again.structure else 'not kept'}")
+    return kept
 
 
 def restarted(predictor: Predictor, result: FitResult, floor: Floor, options: DiagnoseOptions, say,
@@ -1128,8 +1156,9 @@ def rejection(choice: _Choice, what: str = "the best candidate") -> str:
     text = (f"{what}, {choice.best}, {'lowers' if choice.gain >= 0 else 'raises'} the held-out cost by "
             f"{100 * abs(choice.gain):.1f} % but fails: {', '.join(choice.failed)}")
     if choice.only_inconsistent:
-        text += (f" on {choice.consistency['n']} held-out windows (a longer recording, with more of them, would "
-                 "decide)")
+        folds = " of two folds" if choice.consistency.get("folds") == 2 else ""
+        text += (f" on {choice.consistency['n']} held-out windows{folds} (a longer recording, with more of them, "
+                 "would decide)")
     return text
 
 
@@ -1321,6 +1350,7 @@ def acceptance(predictor: Predictor, ref: FitResult, cand: FitResult, effect: st
     consistency = _consistency(predictor, effect, ref.structure, cand.structure)
     min_abs = options.floor_share * floor_cost
     small, immaterial = gain_shortfalls(ref.cost_test, cand.cost_test, options, floor_cost)
+    consistency["max_p"] = max_p
     inconsistent = consistency["p"] > max_p
     law = law_ratio(predictor, ref.structure, cand.structure, law_site(EFFECTS[effect]))
     if law is not None:
@@ -1421,22 +1451,72 @@ def acceptance_p(reductions: np.ndarray, inside: np.ndarray | None = None) -> tu
     return (p_all if inside.all() else min(1.0, 2.0 * min(p_all, p_cond))), p_all, p_cond
 
 
+def held_out_reductions(predictor: Predictor, effect: str, before: Structure, after: Structure
+                        ) -> tuple[np.ndarray, np.ndarray | None, str]:
+    """(per held-out window, the log cost ratio from ``before`` to ``after``; which of those
+    windows hold the condition ``effect`` acts under, and in words: ``condition_mask``)."""
+    w = predictor.test
+    inside, text = condition_mask(predictor, effect)
+    return np.log(window_costs(predictor, before, w) / window_costs(predictor, after, w)), inside, text
+
+
 def _consistency(predictor: Predictor, effect: str, before: Structure, after: Structure) -> dict:
     """The consistency test of a candidate on the held-out windows (JSON-ready record)."""
-    w = predictor.test
-    d = np.log(window_costs(predictor, before, w) / window_costs(predictor, after, w))
-    inside, text = condition_mask(predictor, effect)
+    return consistency_record(*held_out_reductions(predictor, effect, before, after))
+
+
+def consistency_record(d: np.ndarray, inside: np.ndarray | None, text: str, held: str = "held-out windows") -> dict:
+    """The rank test's record (``acceptance_p``) of the per-window reductions ``d``, ``inside``
+    the condition ``text`` names (None: the effect has none); ``held`` says which windows."""
+    n = len(d)
     p, p_all, p_cond = acceptance_p(d, inside)
     if inside is None:
-        return {"windows": f"{len(w)} held-out windows", "n": int(len(w)), "p": p}
+        return {"windows": f"{n} {held}", "n": n, "p": p}
     if p_cond is None:
-        return {"windows": f"{len(w)} held-out windows (p {p_all:.3g}; only {int(inside.sum())} with {text}, "
-                           "too few to test, Bonferroni)",
-                "n": int(len(w)), "n_condition": int(inside.sum()), "p_all_heldout": p_all, "p": p}
-    return {"windows": f"{len(w)} held-out windows (p {p_all:.3g}) and the {int(inside.sum())} with {text} "
+        return {"windows": f"{n} {held} (p {p_all:.3g}; only {int(inside.sum())} with {text}, too few to test, "
+                           "Bonferroni)",
+                "n": n, "n_condition": int(inside.sum()), "p_all_heldout": p_all, "p": p}
+    return {"windows": f"{n} {held} (p {p_all:.3g}) and the {int(inside.sum())} with {text} "
                        f"(p {p_cond:.3g})" + ("" if inside.all() else ", Bonferroni"),
-            "n": int(len(w)), "n_condition": int(inside.sum()),
-            "p_all_heldout": p_all, "p_condition": p_cond, "p": p}
+            "n": n, "n_condition": int(inside.sum()), "p_all_heldout": p_all, "p_condition": p_cond, "p": p}
+
+
+# The fold whose held-out windows a second look takes (``second_fold``): the next share of the
+# same permutation, disjoint from the split every fit so far was made on.
+SECOND_FOLD = 1
+
+
+def second_fold(predictor: Predictor, ref: FitResult, choice: _Choice, options: DiagnoseOptions, say) -> _Choice:
+    """``choice``, a material gain only the rank test refused at its level, tested once more at
+    half that level (Bonferroni: this look adds at most that half to the rate of false
+    additions) on the held-out windows of its split and of a second fold
+    (``Predictor.refolded``), twice as many. The
+    reference and the candidate are each fitted on the second fold's training windows from
+    where their screens ended, so neither has seen the new held-out windows but through its
+    start, alike for both. A short recording's few held-out windows make the signed-rank test
+    coarse (ten give p in steps of about 0.001 to 0.01 near the level): a gain the recording
+    supports shows again on windows no fit has seen, a gain of chance does not. The choice
+    comes back judged on both folds; where the recording holds too few windows for another
+    fold, as it was."""
+    level = choice.consistency["max_p"] / 2
+    try:
+        other = predictor.refolded(SECOND_FOLD)
+    except ValueError:
+        return choice
+    effect = parts(choice.best)[-1]
+    before = other.rollouts
+    refits = [fit(other, r.structure, max_iter=options.fit_iter) for r in (ref, choice.cand)]
+    predictor.rollouts += other.rollouts - before
+    d, inside, text = held_out_reductions(predictor, effect, ref.structure, choice.cand.structure)
+    d2, inside2, _ = held_out_reductions(other, effect, *(r.structure for r in refits))
+    consistency = consistency_record(np.r_[d, d2], None if inside is None else np.r_[inside, inside2], text,
+                                     "held-out windows of two folds")
+    consistency.update(max_p=level, folds=2, second_fold_gain=1.0 - refits[1].cost_test / refits[0].cost_test)
+    failed = [f"paired p = {consistency['p']:.3f} > {level:g}"] if consistency["p"] > level else []
+    say(f"  {choice.best} on a second fold: held-out cost {refits[0].cost_test:.4g} -> {refits[1].cost_test:.4g}; "
+        f"paired p = {consistency['p']:.3g} on {consistency['windows']}: "
+        + (f"fails, {failed[0]}" if failed else "passes"))
+    return dataclasses.replace(choice, consistency=consistency, failed=failed, only_inconsistent=bool(failed))
 
 
 def _bic_lower(predictor: Predictor, ref: FitResult, cand: FitResult) -> bool:

@@ -97,6 +97,12 @@ class Structure:
         return tuple(p.name for p, v, a, b, at in zip(self._select(names), x, lo, hi, near_bound(x, lo, hi))
                      if at and not (p.lo_physical and v < (a + b) / 2))
 
+    def near_physical_floor(self, factor: float) -> tuple[str, ...]:
+        """The parameters within ``factor`` of a lower bound that is physical
+        (``Param.lo_physical``): a term fitted to nearly nothing, which ``stand_in_bounds`` does
+        not flag."""
+        return tuple(p.name for p in self.params if p.lo_physical and self.values[p.name] < factor * p.lo)
+
     def _select(self, names) -> tuple[Param, ...]:
         ps = self.params
         return ps if names is None else tuple(p for p in ps if p.name in names)

@@ -402,9 +402,7 @@ class Predictor:
         # of the window before it; views of the whole recording take each sample once.
         lead = np.maximum(np.r_[0, starts[:-1] + n - starts[1:]], 0)
         self.owned = np.arange(n)[None, :] >= lead[:, None]
-        order = np.random.default_rng(design.seed).permutation(len(starts))
-        self.holdout = np.zeros(len(starts), bool)
-        self.holdout[order[: max(2, int(round(design.holdout * len(starts))))]] = True
+        self.holdout = held_out(design, len(starts))
         self.cols = np.arange(w0, n, design.decimate)  # sample offsets used in the cost
         self.nthread = nthread if nthread is not None else _cores()
         meas = self.measured_windows()
@@ -871,6 +869,14 @@ class Predictor:
         shifted.__dict__["lead_samples"] = self._lead_samples(factor)
         return shifted
 
+    def refolded(self, fold: int) -> "Predictor":
+        """This predictor (the same windows, scratch data and rollout count) with another share of
+        its windows held out (``held_out``): the ``fold``-th of k-fold cross-validation, fold 0
+        its own split. A fit on it sees none of that fold's held-out windows."""
+        other = copy.copy(self)
+        other.holdout = held_out(self.design, len(self.starts), fold)
+        return other
+
     def lead_in_spread(self, structure: Structure, windows: np.ndarray, factors=LEAD_FACTORS) -> np.ndarray:
         """Per window, the largest mean squared difference between the structure's predictions
         from lead-ins started at each of ``factors`` (``with_lead``), in noise floors."""
@@ -985,6 +991,19 @@ class Predictor:
     @property
     def test(self) -> np.ndarray:
         return np.flatnonzero(self.holdout)
+
+
+def held_out(design: WindowDesign, n: int, fold: int = 0) -> np.ndarray:
+    """Which of ``n`` windows are held out: the ``fold``-th share (``design.holdout``, at least
+    two windows) of a permutation drawn from ``design.seed``, so the folds are disjoint and fold
+    0 is a fit's own split."""
+    order = np.random.default_rng(design.seed).permutation(n)
+    k = max(2, int(round(design.holdout * n)))
+    if not 0 <= fold < n // k:
+        raise ValueError(f"fold={fold} must lie in [0, {n // k - 1}] for {n} windows with {k} held out each")
+    mask = np.zeros(n, bool)
+    mask[order[fold * k: (fold + 1) * k]] = True
+    return mask
 
 
 def _glibc_trim():
