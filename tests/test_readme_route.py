@@ -3,7 +3,7 @@ full joint) with a 0.3 mrad backlash, a 10 s multisine, ``mjjoint diagnose --bas
 
 The verdict must be a calibrated claim: never "nothing missing" and never "explained" while the
 final model misses far above the recording's noise floor; every signal predicted to NRMSE 0.3 with
-no parameter on a bound; the backlash named. About 12 minutes on one core, in CI: it is the first
+no parameter on a bound; the backlash named. About 17 minutes on one core, in CI: it is the first
 thing a new user runs. The same route with the gear's hysteresis or its hardening spring as the
 gear effect, the multisine driving the gear to its rated deflection, is slow (5 to 10 minutes each);
 so is the route's recording diagnosed from the default base (every term of the seed's joint on a
@@ -22,7 +22,7 @@ from mjjoint.diagnosis.gear_law import gear_torque
 from mjjoint.identify.effects import EFFECTS
 from mjjoint.modelfile import load_model_file
 
-pytestmark = pytest.mark.long(12)
+pytestmark = pytest.mark.long(17)
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "default.toml"
 # An effect is visible on a route where at least this share of the gear's torque along the
 # recorded deflection is what no linear spring explains (``unexplained_share``).
