@@ -63,9 +63,14 @@ also fit the gear's own law better where the recording measures it (``gear_law``
 torque from the recorded deflection, on the held-out windows): what it gains in simulation
 otherwise stands in for physics elsewhere.
 
+A round's final choice that fails the rank test alone is tested once more on its held-out
+windows and those of a second fold, at half its level (``second_fold``): a short recording's few
+held-out windows put a real gain on either side of the level by one window's rank.
+
 A base whose prediction diverges from its start (its initial values too stiff for the plant's
 step) is fitted at the timestep its stability check asks for, then at the plant's step where its
-fitted values allow (``_base_fit``).
+fitted values allow (``_base_fit``), and again from its start for a term it ran to its physical
+floor on the way (``_off_the_floor``).
 
 Candidates: every catalogued effect the model lacks; one behind a prerequisite the model lacks
 too is screened together with it (a bundle "linear_stiffness+backlash"): a play cannot show
