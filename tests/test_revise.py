@@ -465,7 +465,8 @@ def test_a_tie_does_not_bring_back_the_effect_a_swap_replaced(monkeypatch):
     monkeypatch.setattr(rv, "finish", lambda predictor, first: SimpleNamespace(
         cost_test=first.cost_test * 0.001268,
         structure=SimpleNamespace(values={"load_dependent_friction.gain": 0.1}, nominal=None)))
-    for rival, named in (("stribeck_friction", "dynamic_friction"), ("load_dependent_friction", "load_dependent_friction")):
+    for rival, named in (("stribeck_friction", "dynamic_friction"),
+                         ("load_dependent_friction", "load_dependent_friction")):
         monkeypatch.setattr(rv, "rivals", lambda step, *a, r=rival: [r])
         _, steps, done = revise(None, current, [swapped], {}, DiagnoseOptions(), 1e-6, [].append)
         assert steps[0].effect == named, rival

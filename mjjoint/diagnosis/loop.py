@@ -1083,7 +1083,9 @@ def _base_fit(predictor: Predictor, base: Structure, options: DiagnoseOptions, s
         return result
     say(f"  its fitted values are stable at timestep {base.nominal.timestep:.3g} s: fitted on there")
     coarse = fit(predictor, back, max_iter=options.fit_iter, progress=iterations)
-    return _off_the_floor(predictor, coarse, base, options, say, iterations) if coarse.cost_test < UNSTABLE_COST else result
+    if not coarse.cost_test < UNSTABLE_COST:
+        return result
+    return _off_the_floor(predictor, coarse, base, options, say, iterations)
 
 
 # A parameter within this factor of its physical lower bound is fitted to nearly nothing
@@ -1106,7 +1108,8 @@ def _off_the_floor(predictor: Predictor, result: FitResult, start: Structure, op
                 max_iter=options.fit_iter, progress=iterations)
     kept = lowest([result, again])
     say(f"  {', '.join(floored)} fitted to nothing: fitted again from its start, training cost "
-        f"{result.cost_train:.4g} -> {again.cost_train:.4g}: {'kept' if kept.structure is again.structure else 'not kept'}")
+        f"{result.cost_train:.4g} -> {again.cost_train:.4g}: "
+        + ("kept" if kept.structure is again.structure else "not kept"))
     return kept
 
 
@@ -1495,10 +1498,9 @@ def second_fold(predictor: Predictor, ref: FitResult, choice: _Choice, options: 
     """``choice``, a material gain only the rank test refused at its level, tested once more at
     half that level (Bonferroni: this look adds at most that half to the rate of false
     additions) on the held-out windows of its split and of a second fold
-    (``Predictor.refolded``), twice as many. The
-    reference and the candidate are each fitted on the second fold's training windows from
-    where their screens ended, so neither has seen the new held-out windows but through its
-    start, alike for both. A short recording's few held-out windows make the signed-rank test
+    (``Predictor.refolded``), twice as many. The reference and the candidate are each fitted on
+    the second fold's training windows from where their screens ended, so neither has seen the
+    new held-out windows but through its start, alike for both. A short recording's few held-out windows make the signed-rank test
     coarse (ten give p in steps of about 0.001 to 0.01 near the level): a gain the recording
     supports shows again on windows no fit has seen, a gain of chance does not. The choice
     comes back judged on both folds; where the recording holds too few windows for another
@@ -1509,9 +1511,8 @@ def second_fold(predictor: Predictor, ref: FitResult, choice: _Choice, options: 
     except ValueError:
         return choice
     effect = parts(choice.best)[-1]
-    before = other.rollouts
     refits = [fit(other, r.structure, max_iter=options.fit_iter) for r in (ref, choice.cand)]
-    predictor.rollouts += other.rollouts - before
+    predictor.rollouts = other.rollouts
     d, inside, text = held_out_reductions(predictor, effect, ref.structure, choice.cand.structure)
     d2, inside2, _ = held_out_reductions(other, effect, *(r.structure for r in refits))
     consistency = consistency_record(np.r_[d, d2], None if inside is None else np.r_[inside, inside2], text,

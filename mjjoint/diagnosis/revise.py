@@ -34,9 +34,10 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   well without passing (within a tenth of the step's gain, as rivals tie at a screen) is a tie:
   of the two, the one a screen would name first is named (``loop.tie_order``: fewer parameters,
   fewer prerequisites, the lower cost), and the other is reported indistinguishable from it; a
-  tie never brings back the effect a swap replaced (``SWAPPED_FOR``). A swap is fitted in a screen's two stages (``loop._screen``): on the screens' subset of the windows
-  first, finished on all of them only where its subset cost, scaled as a screen's is, could
-  pass the relative gain.
+  tie never brings back the effect a swap replaced (``SWAPPED_FOR``). A swap is fitted in a
+  screen's two stages (``loop._screen``): on the screens' subset of the windows first, finished
+  on all of them only where its subset cost, scaled as a screen's is, could pass the relative
+  gain.
 - **Removal** (backward elimination): each named effect is tested as if it were added now to the
   model without it; one that no longer passes, given the effects named after it, is removed.
 
