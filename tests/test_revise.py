@@ -453,7 +453,8 @@ def test_a_tie_does_not_bring_back_the_effect_a_swap_replaced(monkeypatch):
     replaced, however much lower that one's tied cost; against another rival the tie rule stands."""
     from mjjoint.diagnosis import revise as rv
     current = SimpleNamespace(cost_test=0.001268, structure=SimpleNamespace(nominal=None))
-    swapped = dataclasses.replace(_step("dynamic_friction"), gain=0.352, screen=rv.SWAPPED_FOR + "stribeck_friction")
+    swapped = dataclasses.replace(_step("dynamic_friction"), gain=0.352, screen="swapped for stribeck_friction",
+                                  replaced="stribeck_friction")
     monkeypatch.setattr(rv, "removable", lambda structure, effects: True)
     monkeypatch.setattr(rv, "without", lambda structure, effects: structure)
     monkeypatch.setattr(rv, "base_params", lambda nominal: [])
@@ -471,3 +472,4 @@ def test_a_tie_does_not_bring_back_the_effect_a_swap_replaced(monkeypatch):
         _, steps, done = revise(None, current, [swapped], {}, DiagnoseOptions(), 1e-6, [].append)
         assert steps[0].effect == named, rival
         assert [r.by for r in done] == ([] if named == "dynamic_friction" else [rival])
+        assert steps[0].replaced == ("stribeck_friction" if named == "dynamic_friction" else "dynamic_friction")

@@ -175,6 +175,7 @@ class Step:
     consistency: dict = field(default_factory=dict)  # the rank test: windows tested, p
     screen: str = "stand-ins held"  # or "all free": the second screen named it (module doc)
     prerequisites: list[str] = field(default_factory=list)  # added with it: the model lacked them too
+    replaced: str = ""  # the effect a swap put this one in place of (``revise._swap``)
 
     @property
     def effects(self) -> tuple[str, ...]:

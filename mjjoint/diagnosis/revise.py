@@ -34,7 +34,7 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   well without passing (within a tenth of the step's gain, as rivals tie at a screen) is a tie:
   of the two, the one a screen would name first is named (``loop.tie_order``: fewer parameters,
   fewer prerequisites, the lower cost), and the other is reported indistinguishable from it; a
-  tie never brings back the effect a swap replaced (``SWAPPED_FOR``). A swap is fitted in a
+  tie never brings back the effect a swap replaced (``Step.replaced``). A swap is fitted in a
   screen's two stages (``loop._screen``): on the screens' subset of the windows first, finished
   on all of them only where its subset cost, scaled as a screen's is, could pass the relative
   gain.
@@ -420,12 +420,6 @@ def _removal(predictor, current, steps, options, floor_cost, say):
     return None
 
 
-# A step's screen after a swap: the effect it replaced, which a tie does not bring back. Within
-# the tie band two rivals of one size are ranked by cost alone, and refits that go on descending
-# would trade them back and forth, each a little lower than the last.
-SWAPPED_FOR = "swapped for "
-
-
 def _swap(predictor, current, steps, where, options, floor_cost, say, excluded):
     """(the best swap of a named step for a rival that passes the acceptance rule against the
     current model, else for a tied rival (one whose model predicts the held-out windows as well,
@@ -477,8 +471,11 @@ def _swap(predictor, current, steps, where, options, floor_cost, say, excluded):
                         f"(p {consistency['p']:.3g})"), []
     for i, key, trial, refitted in sorted(ties, key=lambda t: t[2].cost_test):
         step = steps[i]
+        # A tie never brings back the effect a swap replaced: within the tie band two rivals of one
+        # size are ranked by cost alone, and refits that go on descending would trade them back and
+        # forth, each a little lower than the last.
         if not tie_order(key, trial.cost_test) < tie_order(step.effect, current.cost_test) or \
-                step.screen == SWAPPED_FOR + parts(key)[-1]:
+                step.replaced == parts(key)[-1]:
             continue
         trial = trial if refitted else _refit(predictor, trial, options)
         _, consistency, _ = acceptance(predictor, current, trial, parts(key)[-1], options, floor_cost, options.max_p)
@@ -501,7 +498,7 @@ def _swapped(current, steps, i, trial, key, consistency, reason, tied=False):
         parameters={p.name: trial.structure.values[p.name] for e in (*old.prerequisites, *parts(key))
                     for p in EFFECTS[e].params},
         alternatives=[*others, old.effect] if tied else others,
-        consistency=consistency, screen=SWAPPED_FOR + old.effect)
+        consistency=consistency, screen=f"swapped for {old.effect}", replaced=old.effect)
     return trial, [*steps[:i], new, *steps[i + 1:]], Revision(
         "swap", old.effect, current.cost_test, trial.cost_test, reason, by=key)
 
