@@ -1501,11 +1501,11 @@ def second_fold(predictor: Predictor, ref: FitResult, choice: _Choice, options: 
     additions) on the held-out windows of its split and of a second fold
     (``Predictor.refolded``), twice as many. The reference and the candidate are each fitted on
     the second fold's training windows from where their screens ended, so neither has seen the
-    new held-out windows but through its start, alike for both. A short recording's few held-out windows make the signed-rank test
-    coarse (ten give p in steps of about 0.001 to 0.01 near the level): a gain the recording
-    supports shows again on windows no fit has seen, a gain of chance does not. The choice
-    comes back judged on both folds; where the recording holds too few windows for another
-    fold, as it was."""
+    new held-out windows but through its start, alike for both. A short recording's few held-out
+    windows make the signed-rank test coarse (ten give p in steps of about 0.001 to 0.01 near the
+    level): a gain the recording supports shows again on windows no fit has seen, a gain of chance
+    does not. The choice comes back judged on both folds; where the recording holds too few
+    windows for another fold, as it was."""
     level = choice.consistency["max_p"] / 2
     try:
         other = predictor.refolded(SECOND_FOLD)
