@@ -111,25 +111,6 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
     return z1, z2, omega, qr_end, wsign
 
 
-def reversal_step(a, kd, hj, z1, omega, qr, wsign, h, fc, k, asym):
-    """A step that reverses the motion with z1 taken where it ends: kd w1 + hj (z1(w1) - z1) = a,
-    z1(w1) Eq. 12 from the reversal over a step at w1 (``twosep_step``; the lag's parameters do not
-    enter z1). By bisection between 0 and a / kd, where z1(w) - z1 has the sign of w and grows
-    with |w|. Returns (w1, z1(w1))."""
-    def z1_end(w):
-        return twosep_step(z1, 0.0, omega, qr, wsign, w, h, fc, fc, 1.0, 1.0, 0.0, k, 0.0, asym, 0.0)[0]
-
-    lo, hi = sorted((0.0, a / kd))
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if kd * mid + hj * (z1_end(mid) - z1) - a > 0:
-            hi = mid
-        else:
-            lo = mid
-    w1 = 0.5 * (lo + hi)
-    return w1, z1_end(w1)
-
-
 # ---- Hysteretic stiffness, Eqs. 16-17 ----------------------------------------------------
 def _stiffness_polynomial(v, k1, k2, k3):
     """sum_i k_i sgn(v)|v|^i for i = 1, 2, 3."""
@@ -325,8 +306,7 @@ def joint_forces(p: JointParams, s: JointState, q, wq, theta, wtheta, h, hj, hjl
             presliding_level(f, s, s.load, load)
         if math.isnan(other):
             other = -(explicit - s.z1)
-        w1, fric = twosep_velocity(f, s.z1, s.z2, s.omega, s.q_r, s.w_sign, explicit, damping, other, wq, h, hj,
-                                   load)
+        w1, fric = twosep_velocity(f, s.z1, s.z2, explicit, damping, other, wq, hj)
         s.pending = None
         s.load = load
         if hj > 0 and twosep_event(f, s.w_sign, wq, w1):
@@ -360,17 +340,13 @@ def presliding_level(f: TwoSEP, s: JointState, load_from, load_to):
     s.omega *= r
 
 
-def twosep_velocity(f: TwoSEP, z1, z2, omega, q_r, w_sign, explicit, g, other, wq, h, hj, load=0.0):
-    """(w1, friction) over one step: w1 = wq + hj (other + explicit + g (w1 - wq) - F), F = z1 + c w1,
-    the lag damper c = B|z2| where z2 has the sign of the w1 reached without it; a step that
-    reverses the motion takes z1 where it ends (``reversal_step``, at Fc raised by ``load``)."""
+def twosep_velocity(f: TwoSEP, z1, z2, explicit, g, other, wq, hj):
+    """(w1, friction) over a step: w1 = wq + hj (other + explicit + g (w1 - wq) - F), F = z1 + c w1,
+    z1 the step's start's, the lag damper c = B|z2| where z2 has the sign of the w1 reached without
+    it."""
     k = 1.0 - g * hj
     w1 = wq + hj * (other + (explicit - z1)) / k
     c = f.b * abs(z2) if sgn(z2) == sgn(w1) != 0 else 0.0
-    if hj > 0 and w1 != 0 and sgn(w1) != w_sign:
-        w1, z1 = reversal_step(k * wq + hj * (other + (explicit - z1)), k + c * hj, hj, z1, omega, q_r, w_sign, h,
-                               f.fc + load, f.k, f.asym)
-        return w1, z1 + c * w1
     w1 = (wq * k + hj * (other + (explicit - z1))) / (k + c * hj)
     return w1, z1 + c * w1
 
@@ -386,8 +362,7 @@ def twosep_substeps(f: TwoSEP, z1, z2, omega, q_r, w_sign, explicit, g, other, w
     w_sign)."""
     w = wq
     for _ in range(n):
-        w, _ = twosep_velocity(f, z1, z2, omega, q_r, w_sign, explicit + g * (w - wq), g, other, w, h / n, hj / n,
-                               load)
+        w, _ = twosep_velocity(f, z1, z2, explicit + g * (w - wq), g, other, w, hj / n)
         z1, z2, omega, q_r, w_sign = twosep_step(z1, z2, omega, q_r, w_sign, w, h / n, f.fc + load, f.fs + load,
                                                  f.vs, f.shape, f.sigma, f.k, f.b, f.asym, f.sigma_asym)
     return w, z1, z2, omega, q_r, w_sign

@@ -21,6 +21,7 @@ from mjjoint.identify.fit import fit
 from mjjoint.identify.structure import Structure
 from mjjoint.identify.windows import Measured, Predictor, WindowDesign
 from mjjoint.joint import JointParams
+from mjjoint.physics.stribeck import StaticFriction
 from mjjoint.recordings import Recording, read_recording
 from mjjoint.sim import joint_indices, simulate
 
@@ -50,10 +51,13 @@ def test_a_held_command_reaches_the_lagged_torque_exactly_at_every_step(lag, tim
 
 def test_a_vanishing_lag_is_the_unlagged_input():
     """The lagged model tends to the one without the lag as the lag vanishes, in proportion to it
-    (the screen's lower bound nests the base), not to the input a step late."""
+    (the screen's lower bound nests the base), not to the input a step late. On the static
+    friction map: 2SEP's reversals, each a kink where it crosses a substep's boundary, leave the
+    ratios of the differences ragged by tens of percent (13.4 and 8.8 per decade)."""
     u = Multisine(amplitude=0.3, f_min=0.5, f_max=40.0, seed=2).sample(1000.0, 1.0)
-    plain = simulate(u, arm=ArmSpec(segments=0), joint=JointParams())
-    off = [rel_rms(simulate(u, arm=ArmSpec(segments=0, input_lag=lag), joint=JointParams()).tau, plain.tau)
+    joint = JointParams(friction=StaticFriction())
+    plain = simulate(u, arm=ArmSpec(segments=0), joint=joint)
+    off = [rel_rms(simulate(u, arm=ArmSpec(segments=0, input_lag=lag), joint=joint).tau, plain.tau)
            for lag in (1e-4, 1e-5, 1e-6)]
     assert off[2] < 1e-3
     assert 8 < off[0] / off[1] < 12 and 8 < off[1] / off[2] < 12, off

@@ -18,7 +18,7 @@ from ..physics.jit import kernel
 from ..physics.stribeck import static_friction, static_friction_slope, static_friction_step
 from ..physics.transmission import engaged, transmission_stiffness, transmission_torque
 from ..joint import STABILITY_BUDGET
-from ..physics.twosep import presliding_unspent, reversal_step, reverses, twosep_step, twosep_step_from
+from ..physics.twosep import presliding_unspent, reverses, twosep_step, twosep_step_from
 from ..physics.load import bearing_friction, bearing_step
 from .layout import (ANY_SITE, AT, FO, FOL, FOL2, FOT, FP, FPL, FRICTION, FRICTION_2SEP, FRICTION_STATIC, HYSTERESIS, LOAD,
                      OMEGA, QR, SITE_TERMS, ADVANCE_TERMS, SUB, TP, TRANSMISSION, WP, WPL, WSIGN, X, Z1, Z2)
@@ -215,7 +215,7 @@ def rotor(blk, st, kind, fx, gd, wq, h, hj, dl):
         if blk[F.load_gain] != 0.0 and st[TP] == st[TP]:  # states advanced at the last evaluation's level
             presliding_level(blk, st, load_level(blk, st[TP]), dl)
         om = known_other(st, FO, fx - st[Z1])
-        w1, fric = twosep_velocity(blk, st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], fx, gd, om, wq, h, hj, dl)
+        w1, fric = twosep_velocity(blk, st[Z1], st[Z2], fx, gd, om, wq, hj)
         st[SUB] = 0.0
         if hj > 0.0 and twosep_event(blk, st[WSIGN], wq, w1):
             w1, z1, z2, omega, qr, ws = twosep_substeps(blk, st[Z1], st[Z2], st[OMEGA], st[QR], st[WSIGN], fx, gd,
@@ -265,21 +265,16 @@ def presliding_level(blk, st, dl_from, dl_to):
 
 
 @kernel
-def twosep_velocity(blk, z1, z2, omega, qr, wsign, fx, gd, om, wq, h, hj, dl):
-    """(end velocity w1, friction) of the rotor over one step with 2SEP: z1 from the step's start,
-    the lag a one-sided damper ``c`` = B|z2| decided on the velocity the step would reach without
-    it, linearly implicit with the rotor's other slopes; on a step that reverses the motion z1 is
-    taken at w1 (``twosep.reversal_step``): (1 - gd hj + c hj) w1 + hj (z1(w1) - z1) = (1 - gd hj) wq +
-    hj (other + fx - z1). At the start of such a step z1 still holds the force of the motion before,
-    which taken explicitly would push the rotor on through its reversal for the whole step."""
+def twosep_velocity(blk, z1, z2, fx, gd, om, wq, hj):
+    """(end velocity w1, friction) of the rotor over a step or a substep with 2SEP: z1 from its
+    start, the lag a one-sided damper ``c`` = B|z2| decided on the velocity it would reach without
+    it, linearly implicit with the rotor's other slopes. A step that this w1 shows to reverse the
+    motion holds an event and is substepped (``twosep_event``); a substep that reverses it takes
+    z1 explicitly too, so the substeps' answer has no jump where a reversal moves from one
+    substep to the next."""
     fm = fx - z1
     w1 = wq + implicit_dof(fm, gd, om, hj)
     c = blk[F.b] * abs(z2) if z2 * w1 > 0.0 else 0.0
-    if hj > 0.0 and reverses(w1, wsign):
-        kd = 1.0 - gd * hj
-        w1, z1r = reversal_step(kd * wq + hj * (om + fm), kd + c * hj, hj, z1, omega, qr, wsign, h,
-                                blk[F.fc] + dl, blk[F.k], blk[F.asym])
-        return w1, z1r + c * w1
     if c != 0.0:
         # w1 = wq + hj (other + fm - c w1 + gd (w1 - wq)), solved as one quotient: the damper's
         # force taken apart from the others' sum keeps a rotor the lag brings to rest from
@@ -312,7 +307,7 @@ def twosep_substeps(blk, z1, z2, omega, qr, wsign, fx, gd, om, wq, h, hj, n, dl)
     w = wq
     unspent = presliding_unspent(qr, blk[F.k])  # carried from substep to substep
     for _ in range(n):
-        w1, _ = twosep_velocity(blk, z1, z2, omega, qr, wsign, fx + gd * (w - wq), gd, om, w, hs, hjs, dl)
+        w1, _ = twosep_velocity(blk, z1, z2, fx + gd * (w - wq), gd, om, w, hjs)
         z1, z2, omega, qr, wsign, unspent = twosep_step_from(z1, z2, omega, qr, wsign, w1, hs, blk[F.fc] + dl,
                                                              blk[F.fs] + dl, blk[F.vs], blk[F.shape], blk[F.sigma],
                                                              blk[F.k], blk[F.b], blk[F.asym], blk[F.sigma_asym],

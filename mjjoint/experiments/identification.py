@@ -10,9 +10,13 @@ pre-sliding and Stribeck terms stay in the residual.
 Fig. 13, the transmission: tau = Gamma(delta, x) + D delta' (Eqs. 16-18) with Bouc-Wen state x
 (A = 1, n = 1) is linear in (mu k1, mu k3, (1 - mu) k1, (1 - mu) k3, D) once x is known, and x
 follows from the measured torsion delta for given (beta, gamma). So (beta, gamma) are
-searched (variable projection: scipy least_squares over x_u = 1/(beta + gamma) and
-gamma/beta) with the five linear ones solved at every step; k1, k3 and mu are read off the
-two pairs.
+searched (variable projection: scipy least_squares over ln beta and gamma/beta, from the three
+best points of a coarse grid) with the five linear ones solved at every step; k1, k3 and mu are
+read off the two pairs. Fits nearly as good lie along a narrow valley in which beta stays put
+and gamma moves (gamma is the weaker of the two, and the classic loop's gamma = beta lies on
+the bound): over ln beta and gamma/beta the valley runs along one axis, which the search
+follows to its end; over x_u = 1/(beta + gamma) and gamma/beta it curves, and the search
+stalled on its side.
 """
 from __future__ import annotations
 
@@ -80,25 +84,33 @@ def _hysteresis_state(delta: np.ndarray, beta: float, gamma: float) -> np.ndarra
 
 
 def _transmission_regression(tr: Trace, shape: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Regressors and linear solution for Bouc-Wen shape (ln(beta + gamma), gamma/beta)."""
-    total = float(np.exp(shape[0]))
-    beta = total / (1.0 + shape[1])
+    """Regressors, linear solution, beta and gamma for the Bouc-Wen shape (ln beta, gamma/beta)."""
+    beta = float(np.exp(shape[0]))
+    gamma = beta * float(shape[1])
     delta = tr.delta
-    x = _hysteresis_state(delta, beta, total - beta)
+    x = _hysteresis_state(delta, beta, gamma)
     rate = np.gradient(delta, tr.t[1] - tr.t[0])
     regressors = np.column_stack([delta, delta ** 3, x, x ** 3, rate])
     coef, *_ = np.linalg.lstsq(regressors, tr.tau, rcond=None)
-    return regressors, coef, beta, total - beta
+    return regressors, coef, beta, gamma
+
+
+# The shape's search box: beta from 5 to 1e5 1/rad (x_u = 1/(beta + gamma) from 0.1 rad down to
+# 5 um), gamma/beta in [-0.9, 1] (gamma <= beta: ``BoucWen``).
+SHAPE_BOUNDS = ([np.log(5.0), -0.9], [np.log(1e5), 1.0])
 
 
 def fit_transmission(tr: Trace) -> tuple[TransmissionFit, np.ndarray]:
-    """The fit and its torque prediction; x_u searched in [10 um, 0.1 rad], gamma/beta in [-0.9, 1]."""
+    """The fit and its torque prediction: least squares from each of the three best shapes on a
+    9 x 5 grid over ``SHAPE_BOUNDS``, the best of the three kept."""
     def residual(shape):
         regressors, coef, *_ = _transmission_regression(tr, shape)
         return regressors @ coef - tr.tau
 
-    start = [np.log(200.0), 0.0]  # x_u = 5 mrad, a symmetric loop
-    sol = least_squares(residual, start, bounds=([np.log(10.0), -0.9], [np.log(1e5), 1.0]), diff_step=1e-4)
+    lo, hi = SHAPE_BOUNDS
+    grid = [(lb, r) for lb in np.linspace(lo[0], hi[0], 9) for r in np.linspace(lo[1], hi[1], 5)]
+    starts = sorted(grid, key=lambda g: float(np.sum(residual(g) ** 2)))[:3]
+    sol = min((least_squares(residual, g, bounds=SHAPE_BOUNDS, diff_step=1e-4) for g in starts), key=lambda r: r.cost)
     regressors, (e1, e3, p1, p3, damping), beta, gamma = _transmission_regression(tr, sol.x)
     k1 = e1 + p1
     fit = TransmissionFit(float(k1), float(e3 + p3), float(e1 / k1), float(damping), beta, gamma)

@@ -34,10 +34,9 @@ step's w and z1, z2' = d - lam z2 with lam = B|w|/|S|, and is solved exactly ove
 (stiff at speed, where 1/lam is far below h). In MuJoCo the lag force is a damper of slope
 B|z2| on the rotor, unbounded in slow sliding; the plugin applies it linearly implicitly with
 the rotor's other torques (``coupling.kernels.joint_evaluate``), so the pair is integrated
-consistently at any slope. z1 is applied as the step's start holds it, but on a step that
-reverses the motion, where it is taken at the velocity the step ends with (``reversal_step``).
-A step that holds a reversal, a stop or a breakaway is taken in substeps of the rotor and these
-states together (``coupling.kernels.twosep_substeps``; docs/design.md, "Integration").
+consistently at any slope. z1 is applied as the step's start holds it. A step that holds a
+reversal, a stop or a breakaway is taken in substeps of the rotor and these states together
+(``coupling.kernels.twosep_substeps``; docs/design.md, "Integration").
 """
 from __future__ import annotations
 
@@ -46,7 +45,6 @@ from dataclasses import dataclass
 
 from ..params import check
 from .jit import kernel
-from .roots import ITERATIONS, newton_in_bracket
 from .stribeck import smooth_sign, steady_state, stribeck_level  # noqa: F401 (steady_state: public API)
 
 # Width of the regularised sgn(w) in the lag state's drive (Eq. 14), in Stribeck velocities.
@@ -84,18 +82,10 @@ def presliding_unspent(qr, k):
 
 
 @kernel
-def presliding(z1, omega, qr, wsign, w, h, fc, k, asym):
-    """Eqs. 12-13 over one step at velocity ``w``: (z1, dz1/dw, omega, qr, wsign) at its end."""
-    z1, slope, omega, qr, wsign, _ = presliding_from(z1, omega, qr, wsign, w, h, fc, k, asym,
-                                                     presliding_unspent(qr, k))
-    return z1, slope, omega, qr, wsign
-
-
-@kernel
 def presliding_from(z1, omega, qr, wsign, w, h, fc, k, asym, unspent):
-    """``presliding`` given ``unspent`` = ``presliding_unspent(qr, k)``, which a caller that steps
-    on carries from each step's end to the next (one exp a step instead of two): the five values
-    and ``unspent`` at the step's end."""
+    """Eqs. 12-13 over one step at velocity ``w``, given ``unspent`` = ``presliding_unspent(qr, k)``,
+    which a caller that steps on carries from each step's end to the next (one exp a step instead
+    of two): (z1, omega, qr, wsign, unspent) at the step's end."""
     sg = 1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0)
     if sg != 0.0 and sg != wsign:
         # Motion reversal: memorise the stiffness capacity (13) and restart q_r. At the
@@ -105,44 +95,17 @@ def presliding_from(z1, omega, qr, wsign, w, h, fc, k, asym, unspent):
         wsign = sg
         unspent = 1.0
     qr_new = qr + w * h
-    slope = 0.0
     if k * abs(qr) < SATURATED:
         end = math.exp(-k * abs(qr_new))
         z1 = z1 + sg * omega * (unspent - end)
-        slope = omega * k * h * end
         unspent = end if k * abs(qr_new) < SATURATED else 0.0
-    return z1, slope, omega, qr_new, wsign, unspent
+    return z1, omega, qr_new, wsign, unspent
 
 
 @kernel
 def reverses(w, wsign):
     """Whether moving at ``w`` reverses the motion last in direction ``wsign``."""
     return w != 0.0 and (1.0 if w > 0.0 else -1.0) != wsign
-
-
-@kernel
-def reversal_step(a, kd, hj, z1, omega, qr, wsign, h, fc, k, asym):
-    """The velocity w1 of a step that reverses the motion, its pre-sliding force taken at the
-    step's end: kd w1 + hj (z1(w1) - z1) = a, z1(w1) what Eq. 12 gives from the reversal at w1 over
-    the step (``presliding``). ``kd`` >= 1 carries the dof's linear implicit slopes, ``hj`` = h / J,
-    ``a`` = kd times the velocity the step would end with under the start's z1 (kept apart from
-    z1, so that a rotor balanced to the last bit stays put). Returns (w1, z1(w1)).
-
-    z1(w) - z1 has the sign of w and grows with |w|, so the one root lies between 0 and a / kd,
-    where the step would end with z1 explicit: Newton within that bracket (``roots``), from a / kd
-    (its first step lands where the saturated z1 would stop it).
-    """
-    w = a / kd
-    lo = min(w, 0.0)
-    hi = max(w, 0.0)
-    f = z1
-    for _ in range(ITERATIONS):
-        f, df, _, _, _ = presliding(z1, omega, qr, wsign, w, h, fc, k, asym)
-        w_next, lo, hi, done = newton_in_bracket(w, kd * w + hj * (f - z1) - a, kd + hj * df, lo, hi)
-        if done:
-            break
-        w = w_next
-    return w, f
 
 
 @kernel
@@ -157,7 +120,7 @@ def twosep_step(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, 
 def twosep_step_from(z1, z2, omega, qr, wsign, w, h, fc, fs, vs, shape, sigma, k, b, asym, sigma_asym, unspent):
     """``twosep_step`` given ``presliding_unspent(qr, k)`` (``presliding_from``); returns it at the
     step's end after the five states."""
-    z1, _, omega, qr_new, wsign, unspent = presliding_from(z1, omega, qr, wsign, w, h, fc, k, asym, unspent)
+    z1, omega, qr_new, wsign, unspent = presliding_from(z1, omega, qr, wsign, w, h, fc, k, asym, unspent)
     s, s_mag = lag_target(w, fc, fs, vs, shape, sigma, asym, sigma_asym)
     # Eq. 14 is linear in z2 for frozen w and z1: z2' = d - lam z2, solved exactly over the step.
     # The gain (1 - e^-lam_h) h / lam_h from the one exp; its series where that loses digits, and
