@@ -96,6 +96,19 @@ def test_operating_conditions_from_quantized_encoders(seed):
     np.testing.assert_allclose(found, reversals, atol=2e-3)
 
 
+def test_a_rest_has_exactly_zero_rates_whatever_its_angle():
+    """A resting encoder's rate is zero, not the filter's rounding on its angle: the sign of a
+    rounding error (which differs between linear-algebra kernels) would pass for a Coulomb term."""
+    t = np.arange(0.0, 0.6, 1e-3)
+    q = 69.3 + np.minimum(t, 0.2) * 3.0 + np.maximum(t - 0.4, 0.0) * 2.0  # moves, rests 0.2-0.4 s, moves
+    u = np.where(t < 0.2, 0.1, np.where(t < 0.4, 0.04, 0.1)) + 1e3  # large enough to round
+    c = operating_conditions(t, q, q / 100.0 - 0.37, u, 100.0, tau=u)
+    rest = (t > 0.22) & (t < 0.38)
+    for name in ("qd", "qdd", "ud", "thetad"):
+        assert np.all(c[name][rest] == 0.0), name
+    assert np.all(np.sign(c["qd"][rest]) == 0.0) and np.all(c["qd"][(t > 0.02) & (t < 0.18)] == pytest.approx(3.0))
+
+
 def test_reversal_proximity_counts_a_chattering_dwell_once():
     rng = np.random.default_rng(3)
     t = np.arange(0.0, 0.3, 1e-3)

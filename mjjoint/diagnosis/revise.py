@@ -19,8 +19,9 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   that optimum, and the other tests decide); so is an effect, the first too, whose characteristic
   speed (the Stribeck velocity) is fitted below the speed the recording resolves
   (``unresolved_speeds``), a sensor's time shift below a tenth of a sample
-  (``unresolved_shift``), or a mode above the Nyquist frequency (``unresolved_mode``: a flexible
-  rod's, which the recording cannot show); the model without it, refitted from where its fit left
+  (``unresolved_shift``), or a mode above the Nyquist frequency or placed by its parameters' 95 %
+  intervals no better than within a factor of two (``unresolved_mode``: a flexible rod's, which
+  the recording then does not show); the model without it, refitted from where its fit left
   the other parameters, replaces the current one where it predicts the held-out windows better (a
   term fitted to its bound is often fitted to none, its gain the model's own from another start).
   A generic form, the first effect too, is one where its fit cannot tell its size from none
@@ -159,7 +160,8 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     against the model without it refitted from its values, its own parameters on their
     bounds (the first effect where every one of them is), a characteristic speed fitted below what
     the recording resolves (``unresolved_speeds``), a sensor's time shift below a tenth of a sample
-    (``unresolved_shift``) or a mode above the Nyquist frequency (``unresolved_mode``; these three
+    (``unresolved_shift``) or a mode above the Nyquist frequency or not placed by the recording
+    (``unresolved_mode``; these three
     the first effect too), a related effect already
     refused as a stand-in (one of ``refusals``) predicting the held-out windows better than it does,
     or, when it is ``related`` to an effect already ``named``, its gain gone against the model
@@ -323,20 +325,39 @@ def unresolved_shift(predictor: Predictor, result: FitResult, effect: str) -> st
             f"({period:.3g} s), finer than the recording's clock")
 
 
+# A mode the recording shows is placed by it within this factor (the ratio of the highest to the
+# lowest frequency over the ends of the term's 95 % intervals); one placed no better is not shown.
+MODE_SPREAD = 2.0
+
+
 def unresolved_mode(predictor: Predictor, result: FitResult, effect: str) -> str:
     """The mode ``effect`` adds (``Effect.mode_hz``: a flexible rod's) where ``result`` fitted it
-    above the Nyquist frequency, in words, or "". The recording cannot show such a mode; what
-    the term still does below it (a little compliance, a damper on the link) is what the gear's
-    spring and damper hold or dissipation elsewhere gives (the effect's ``stand_ins``): it
-    stands in for that physics."""
+    above the Nyquist frequency or placed it no better than within ``MODE_SPREAD`` (``mode_span``),
+    in words, or "". The recording then does not show that mode; what the term still does (a
+    little compliance, a damper on the link) is what the gear's spring and damper hold or
+    dissipation elsewhere gives (the effect's ``stand_ins``): it stands in for that physics."""
     mode_hz = EFFECTS[effect].mode_hz
     if mode_hz is None:
         return ""
     mode, nyquist = mode_hz(result.structure), predictor.m.rate / 2.0
-    if not mode > nyquist:
+    if mode > nyquist:
+        return (f"its mode at {mode:.3g} Hz, above the recording's Nyquist frequency ({nyquist:.3g} Hz): a mode the "
+                "recording cannot show")
+    low, high = mode_span(result, effect)
+    if not high > MODE_SPREAD * low:
         return ""
-    return (f"its mode at {mode:.3g} Hz, above the recording's Nyquist frequency ({nyquist:.3g} Hz): a mode the "
-            "recording cannot show")
+    return (f"its mode at {mode:.3g} Hz placed only within {low:.3g} .. {high:.3g} Hz by its parameters' 95 % "
+            "intervals: a mode the recording does not show")
+
+
+def mode_span(result: FitResult, effect: str) -> tuple[float, float]:
+    """The lowest and highest frequency [Hz] of ``effect``'s mode over the ends of its parameters'
+    95 % intervals in ``result``, each parameter moved alone (one held has none)."""
+    mode_hz = EFFECTS[effect].mode_hz
+    modes = [mode_hz(result.structure)]
+    for p in EFFECTS[effect].params:
+        modes += [mode_hz(result.structure.with_values({p.name: end})) for end in result.intervals.get(p.name, ())]
+    return min(modes), max(modes)
 
 
 def _refit_without(predictor: Predictor, after: FitResult, step: Step, options: DiagnoseOptions) -> FitResult:
