@@ -14,6 +14,7 @@ import pytest
 
 from mjjoint.diagnosis.features import operating_conditions, reversal_proximity
 from mjjoint.diagnosis.locate import MAX_LAG_S, condition_scores, locate, nrmse, residual_windows
+from mjjoint.identify.windows import velocity
 
 FS = 1000.0   # [Hz]
 N = 50.0      # gear ratio
@@ -107,6 +108,7 @@ def test_a_rest_has_exactly_zero_rates_whatever_its_angle():
     for name in ("qd", "qdd", "ud", "thetad"):
         assert np.all(c[name][rest] == 0.0), name
     assert np.all(np.sign(c["qd"][rest]) == 0.0) and np.all(c["qd"][(t > 0.02) & (t < 0.18)] == pytest.approx(3.0))
+    assert np.all(velocity(q, 1e-3)[rest] == 0.0)  # the window starts' velocity
 
 
 def test_reversal_proximity_counts_a_chattering_dwell_once():

@@ -10,12 +10,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import savgol_filter
 
+from ..recordings.rates import savgol_rate
+
 SAVGOL_WINDOW_S = 0.010   # [s]: long enough to average encoder steps, short next to joint dynamics
 SAVGOL_POLYORDER = 2      # quadratic: follows turning points without the noise gain of higher orders
 REVERSAL_SWING = 0.05     # a reversal must swing qd past ±5 % of its 95th-percentile speed
-# A derivative filter's rounding on a constant stretch is about eps |x| / dt; rates this far
-# below |x| / dt are read as exactly zero, so that a rest's sign is 0 whatever the linear algebra.
-ROUND_OFF = 1e-12
 
 
 def sample_period(t: np.ndarray) -> float:
@@ -97,10 +96,9 @@ def operating_conditions(
     width = _savgol_window(dt, q.size)
 
     def smooth(x: np.ndarray, deriv: int = 0) -> np.ndarray:
-        y = savgol_filter(x, width, SAVGOL_POLYORDER, deriv=deriv, delta=dt)
         if deriv:
-            y[np.abs(y) <= ROUND_OFF * np.max(np.abs(x), initial=0.0) / dt] = 0.0
-        return y
+            return savgol_rate(x, width, SAVGOL_POLYORDER, dt)
+        return savgol_filter(x, width, SAVGOL_POLYORDER, delta=dt)
 
     qd = smooth(q, 1)
     out = {

@@ -38,6 +38,7 @@ from ..assets.stability import check_model_stability
 from ..coupling.mjlog import mujoco_log_silenced
 from ..coupling.plugin import register_model
 from ..params import substeps
+from ..recordings.rates import savgol_rate
 from ..recordings.resample import STEP_TOLERANCE
 from ..physics.twosep import TwoSEP
 from ..sim import FULL, joint_indices, state_velocity
@@ -362,7 +363,7 @@ def velocity(x: np.ndarray, dt: float) -> np.ndarray:
     if len(x) < width:
         raise ValueError(f"{len(x)} samples at {1.0 / dt:.6g} Hz are fewer than the derivative's window of {width} "
                          f"({VELOCITY_WINDOW * 1e3:g} ms): record longer (or check t's unit)")
-    return savgol_filter(x, width, VELOCITY_ORDER, deriv=1, delta=dt)
+    return savgol_rate(x, width, VELOCITY_ORDER, dt)
 
 
 def _sg_window(dt: float) -> int:
