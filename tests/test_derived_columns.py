@@ -62,6 +62,17 @@ def test_ddt_is_the_time_derivative_and_its_window_is_settable(tmp_path: Path) -
     assert not np.array_equal(rec.u, rec.q)  # the wider window is a different filter
 
 
+def test_ddt_of_a_rest_is_exactly_zero_so_its_sign_is_too(tmp_path: Path) -> None:
+    # A held encoder count, far from zero: the filter's rounding there has a sign of its own.
+    x = np.r_[np.linspace(0.0, 1.0, N // 2), np.full(N - N // 2, 1.0)] + 123.456
+    path = tmp_path / "r.csv"
+    path.write_text("time,x\n" + "".join(f"{a:.17g},{b:.17g}\n" for a, b in zip(np.arange(N) * DT, x)))
+    rec = read_recording(path, columns={"t": "time", "u": "sign(ddt(x))", "q": "ddt(x)", "theta": "x"})
+    rest = slice(N // 2 + 10, N)
+    assert np.all(rec.q[rest] == 0.0) and np.all(rec.u[rest] == 0.0)
+    assert np.all(rec.u[10:N // 2 - 10] == 1.0)
+
+
 def test_expressions_reach_matrix_columns_struct_fields_and_comparisons(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     data = rng.normal(size=(N, 3))

@@ -14,7 +14,7 @@ Grammar (a subset of Python's, evaluated on NumPy arrays, never by ``eval``):
 - functions: ``abs sign sqrt exp log sin cos tan atan2 clip(x, lo, hi) min(a, b) max(a, b)``
   (elementwise) and ``ddt(x)``, the time derivative: a centred cubic Savitzky-Golay fit over
   DDT_WINDOW samples at the median sample period (``ddt(x, 11)``: over 11), which needs samples
-  evenly spaced within DDT_JITTER.
+  evenly spaced within DDT_JITTER; on a rest it is exactly zero (``rates.savgol_rate``).
 """
 
 from __future__ import annotations
@@ -139,9 +139,9 @@ def _derivative(args: list, t: np.ndarray | None, what: str) -> np.ndarray:
     if not (period > 0 and np.max(np.abs(steps - period)) <= DDT_JITTER * period):
         raise RecordingError(f"{what}: ddt needs evenly spaced samples (every period within {DDT_JITTER:.0%} of "
                              f"the median {period:.4g} s); differentiate after resampling instead")
-    from scipy.signal import savgol_filter  # seconds to import: not on the way to simulating
+    from .rates import savgol_rate  # scipy takes seconds to import: not on the way to simulating
 
-    return savgol_filter(x, int(window), DDT_ORDER, deriv=1, delta=period)
+    return savgol_rate(x, int(window), DDT_ORDER, period)
 
 
 def read_columns(sources: Mapping[str, str], lookup: Callable[[str, str], np.ndarray],
