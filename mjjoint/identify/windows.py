@@ -180,10 +180,11 @@ class Measured:
         accurate at the samples."""
         v = self.qd if name == "q" else self.thetad
         samples = np.arange(len(v))
-        return state_velocity(np.interp(at, samples, v), np.interp(at, samples, self._acceleration[name]), h)
+        return state_velocity(np.interp(at, samples, v), np.interp(at, samples, self.acceleration[name]), h)
 
     @cached_property
-    def _acceleration(self) -> dict[str, np.ndarray]:
+    def acceleration(self) -> dict[str, np.ndarray]:
+        """The second derivatives of q and theta (those recorded), segment by segment."""
         dt = 1.0 / self.rate
         acc = lambda x: savgol_filter(x, _sg_window(dt), VELOCITY_ORDER, deriv=2, delta=dt)  # noqa: E731
         return {k: self.per_segment(acc, x) for k, x in (("q", self.q), ("theta", self.theta)) if x is not None}

@@ -20,9 +20,8 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
-from scipy.signal import savgol_filter
 
-from ..identify.windows import VELOCITY_ORDER, Measured, _sg_window
+from ..identify.windows import Measured
 from ..recordings import MultiRecording
 from ..sim import joint_indices
 
@@ -42,9 +41,8 @@ def measured_motion(rec: MultiRecording) -> tuple[np.ndarray, list[tuple[np.ndar
         grid = m.t
         if m.theta is None:
             raise ValueError(f"joint {k} has no theta column: the arm's load needs every joint's q and theta")
-        dt = 1.0 / m.rate
-        acc = lambda x: savgol_filter(x, _sg_window(dt), VELOCITY_ORDER, deriv=2, delta=dt)  # noqa: E731
-        out.append((m.q, m.qd, acc(m.q), m.theta, m.thetad, acc(m.theta)))
+        acc = m.acceleration
+        out.append((m.q, m.qd, acc["q"], m.theta, m.thetad, acc["theta"]))
     return grid, out
 
 
