@@ -37,7 +37,7 @@ GEAR_VALUES = {"linear_stiffness.k1": 1e4, "transmission_damping.d": 2.0}
 FAST = ["--window-length", "0.1", "--max-rounds", "1", "--candidates", "backlash,input_delay",
         "--fit-iter", "6", "--screen-iter", "4"]
 SCHEMA = {"missing", "steps", "final_model", "initial_fit", "final_fit", "final_where", "verdict", "budget",
-          "noise_floor", "explained", "stand_ins", "unstable_screens"}
+          "noise_floor", "explained", "stand_ins", "unstable_screens", "heldout_left_out_s"}
 
 
 def simulate_csv(path: Path, effects: tuple[str, ...], values: dict) -> Path:

@@ -10,12 +10,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mjjoint.benchmark.cases import GEAR_RATIO, make_case
+from mjjoint.benchmark.cases import GEAR_RATIO, NOMINAL, make_case
+from mjjoint.diagnosis.open_starts import leave_out_open_starts, with_lag
 from mjjoint.rehearse import LabProgram, record
 from mjjoint.identify.fit import fit, window_costs
 from mjjoint.identify.structure import Structure
-from mjjoint.identify.windows import (REVERSAL_BAND, UNDETERMINED, Measured, Predictor, WindowDesign, lead_samples,
-                                     transient_lead)
+from mjjoint.identify.windows import (REVERSAL_BAND, UNDETERMINED, Measured, Predictor, WindowDesign, held_out,
+                                     lead_samples, transient_lead)
 from mjjoint.recordings import Recording
 
 RATE = 1000.0
@@ -175,3 +176,44 @@ def test_a_flexible_link_keeps_the_history_after_reversals():
     (a,), (b,) = pred.predict([truth]), resting_only.predict([truth])
     for k in a:
         np.testing.assert_array_equal(a[k], b[k])
+
+
+def test_the_held_out_windows_the_lag_leaves_open_are_left_out_of_every_score(lab):
+    """``diagnosis.open_starts``: the held-out windows the base with 2SEP at its catalogue values
+    leaves open leave ``test`` (not ``train``), and the truth's own cost there is what no start
+    the recording gives can fix. Held-out sets without such a window stay as they were."""
+    truth, measured = lab
+    base = Structure.create(make_case("dynamic_friction", 0).base_effects, NOMINAL, GEAR_RATIO)
+    lagged = with_lag(base)
+    every = Predictor(measured, WindowDesign(seed=0))
+    open_ = every.undetermined(lagged, np.arange(len(every.starts)))
+    assert open_.size > 0
+    n = len(every.starts)
+    holds = [s for s in range(40) if np.isin(open_, np.flatnonzero(held_out(WindowDesign(seed=s), n))).any()]
+    clear = [s for s in range(40) if not np.isin(open_, np.flatnonzero(held_out(WindowDesign(seed=s), n))).any()]
+    assert holds and clear
+
+    pred = Predictor(measured, WindowDesign(seed=holds[0]))
+    test, train = pred.test, pred.train
+    left = leave_out_open_starts(pred, base)
+    assert set(left) == set(open_) & set(test)
+    np.testing.assert_array_equal(pred.test, np.setdiff1d(test, left))
+    np.testing.assert_array_equal(pred.train, train)
+    assert not pred.scored_holdout[left].any() and pred.holdout[left].all()
+    costs = window_costs(pred, truth, test)
+    assert costs[np.isin(test, left)].min() > 10 * np.median(costs[~np.isin(test, left)])
+    np.testing.assert_array_equal(pred.refolded(1).test, np.flatnonzero(held_out(pred.design, n, 1)))
+
+    pred = Predictor(measured, WindowDesign(seed=clear[0]))
+    test = pred.test
+    assert leave_out_open_starts(pred, base).size == 0
+    np.testing.assert_array_equal(pred.test, test)
+
+
+def test_the_lag_is_added_with_what_it_needs_or_not_at_all():
+    minimal = Structure.create((), NOMINAL, GEAR_RATIO)
+    assert with_lag(minimal).effects == ("coulomb_friction", "dynamic_friction")
+    sticking = Structure.create(("coulomb_friction", "sticking_friction"), NOMINAL, GEAR_RATIO)
+    assert with_lag(sticking) is None
+    lagged = with_lag(minimal)
+    assert with_lag(lagged) is lagged

@@ -14,7 +14,7 @@ from mjjoint.report.html import diagnosis_page
 from mjjoint.report.output import MARKER, OutputDir, jsonable, write_json
 from mjjoint.report.plots import plot_residual_time, plot_windows, worst_windows
 from mjjoint.report.rrd import write_rrd
-from mjjoint.report.summary import nrmse_lines, parameter_table
+from mjjoint.report.summary import diagnosis_summary, nrmse_lines, parameter_table
 
 PNG = b"\x89PNG\r\n\x1a\n"
 RATE = 1000.0
@@ -244,3 +244,13 @@ def test_figures_name_the_plants_own_units(joint_type, position, speed, force):
     assert axis_label(cmp, "q").endswith(f"[{position}]") and axis_label(cmp, "tau").endswith(f"[{force}]")
     assert condition_axis("coulomb_friction", cmp)[1] == f"motor velocity q' [{speed}]"
     assert comparison().display("q") == ("rad", 1.0)  # a geared joint keeps the catalogue's
+
+
+@pytest.mark.parametrize("left", [[], [12.5, 17.75]])
+def test_the_summary_names_the_held_out_windows_left_out_of_every_score(left):
+    fit = {"nrmse_heldout": {"q": 0.1, "tau": 0.2}}
+    diag = {"verdict": "v", "steps": [], "initial_fit": fit, "final_fit": fit, "explained": False,
+            "final_model": {"warnings": []}, "budget": {"rollouts_full_length": 3.0}, "heldout_left_out_s": left}
+    lines = [line for line in diagnosis_summary(diag, 1.0).splitlines() if "left out of every score" in line]
+    assert lines == ([] if not left else ["held-out windows at 12.5, 17.75 s left out of every score: the recording "
+                                          "leaves their start at rest open"])

@@ -1,6 +1,7 @@
 """diagnose: fit -> locate -> name -> add -> refit, until nothing missing is left.
 
-Each round:
+First, the held-out windows whose start the recording leaves open are left out of every score
+(``open_starts``), so that every model is tested on the same windows. Each round:
 1. the current structure is fitted to the training windows (``identify.fit``);
 2. its prediction residual is located (``locate``): which signal, when, under which condition;
    and, where the gear torque is recorded, the rotor's torque balance (``balance``);
@@ -136,6 +137,7 @@ from .features import operating_conditions, reversal_proximity
 from .floor import EXPLAINED_RATIO, WINDOWING_TRUST, Floor, judged, noise_floor
 from .gear_law import ENERGY_RETURNED, law_energy, law_ratio, law_site
 from .locate import REVERSAL_WINDOW_S, locate, located_conditions
+from .open_starts import leave_out_open_starts, left_out_line
 from .rests import ROTOR_HOLDS, creep, rest_mask
 
 MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
@@ -217,6 +219,7 @@ class Diagnosis:
     revisions: list = field(default_factory=list)  # diagnosis.revise.Revision: swaps, removals, stand-ins refused
     phases: dict = field(default_factory=dict)  # where the rollouts and time went (``clock.Phases.as_dict``)
     signs: dict = field(default_factory=dict)  # the recording's own signs (``recorded_signs``): name -> description
+    open_starts: list = field(default_factory=list)  # [s] held-out windows left out of every score (``open_starts``)
 
     @property
     def stand_in_effects(self) -> dict[str, str]:
@@ -252,6 +255,7 @@ class Diagnosis:
                 "revisions": [r.as_dict() for r in self.revisions],
                 "stand_in_effects": self.stand_in_effects,
                 "recorded_signs": self.signs,
+                "heldout_left_out_s": self.open_starts,
                 "verdict": self.verdict,
                 # Rollouts only: diagnosis.json holds no wall times (run.json does), so that a rerun
                 # gives the same file; the progress line has the seconds per phase.
@@ -414,11 +418,14 @@ def generic_candidates(structure: Structure, where: dict, excluded=()) -> tuple[
 def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = DiagnoseOptions(),
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     say = progress or (lambda msg: None)
+    t_start = time.perf_counter()
+    roll0 = predictor.rollouts
+    open_starts = [round(float(predictor.m.t[predictor.starts[w]]), 4) for w in leave_out_open_starts(predictor, base)]
+    if open_starts:
+        say(left_out_line(open_starts))
     if len(predictor.test) < MIN_HELDOUT:
         raise ValueError(f"only {len(predictor.test)} held-out windows: naming an effect needs at least {MIN_HELDOUT} "
                          "(the rank test cannot reach p <= 0.05 with fewer); use a longer recording or shorter windows")
-    t_start = time.perf_counter()
-    roll0 = predictor.rollouts
     say(f"fitting the base model ({', '.join(base.effects) or 'minimal'})")
     iterations = lambda i, c: say(f"    iteration {i}: cost {c:.4g}")  # noqa: E731
     phases = Phases(lambda: predictor.rollouts)
@@ -643,7 +650,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     say(f"spent: {phases.line()}")
     return Diagnosis(steps, initial, current, final_where, verdict,
                      predictor.rollouts - roll0, time.perf_counter() - t_start, history,
-                     floor, explained, bounds, unstable, unresolved, revisions, phases.as_dict(), signs)
+                     floor, explained, bounds, unstable, unresolved, revisions, phases.as_dict(), signs, open_starts)
 
 
 def standing(revisions, named) -> list:

@@ -68,7 +68,7 @@ def compare(predictor: Predictor, models: dict[str, Structure]) -> Comparison:
         predicted={label: {s: p[s] for s in SIGNALS if s in p} for label, p in zip(models, preds)},
         conditions={k: v[idx] for k, v in (("q", m.q), ("theta", m.theta), ("qd", m.qd), ("thetad", m.thetad))
                     if v is not None},
-        heldout=np.asarray(predictor.holdout, bool).copy(), cost=cost, owned=predictor.owned.copy(),
+        heldout=predictor.scored_holdout.copy(), cost=cost, owned=predictor.owned.copy(),
         plant_units=plant_units(next(iter(models.values())).nominal) if models else {})
 
 

@@ -1,6 +1,7 @@
 """Plain-text summaries for the terminal: parameter tables, NRMSE before -> after, the verdict."""
 from __future__ import annotations
 
+from ..diagnosis.open_starts import left_out_line
 from ..diagnosis.revise import revision_line
 from ..identify.effects import BASE_PARAMS, EFFECTS, Param
 
@@ -99,6 +100,8 @@ def diagnosis_summary(diag: dict, seconds: float) -> str:
     if revised:
         lines.append("revisions of the search (diagnosis.json \"revisions\"):")
         lines += [f"  - {line}" for line in revised]
+    if diag.get("heldout_left_out_s"):
+        lines.append(left_out_line(diag["heldout_left_out_s"]))
     lines.append("held-out NRMSE per signal (base model -> final model; noise floor):")
     lines += judged_lines(diag, diag["initial_fit"]["nrmse_heldout"], diag["final_fit"]["nrmse_heldout"])
     if diag["final_model"]["warnings"]:
