@@ -195,8 +195,13 @@ def test_the_held_out_windows_the_lag_leaves_open_are_left_out_of_every_score(la
 
     pred = Predictor(measured, WindowDesign(seed=holds[0]))
     test, train = pred.test, pred.train
-    left = leave_out_open_starts(pred, base)
-    assert set(left) == set(open_) & set(test)
+    left = np.intersect1d(open_, test)
+    said = []
+    assert leave_out_open_starts(pred, base, len(test) - len(left) + 1, said.append) == []  # too few would remain
+    np.testing.assert_array_equal(pred.test, test)
+    assert "kept in the score" in said[-1]
+    starts = leave_out_open_starts(pred, base, len(test) - len(left), said.append)
+    assert starts == [round(float(measured.t[pred.starts[w]]), 4) for w in left] and "left out" in said[-1]
     np.testing.assert_array_equal(pred.test, np.setdiff1d(test, left))
     np.testing.assert_array_equal(pred.train, train)
     assert not pred.scored_holdout[left].any() and pred.holdout[left].all()
@@ -206,7 +211,7 @@ def test_the_held_out_windows_the_lag_leaves_open_are_left_out_of_every_score(la
 
     pred = Predictor(measured, WindowDesign(seed=clear[0]))
     test = pred.test
-    assert leave_out_open_starts(pred, base).size == 0
+    assert leave_out_open_starts(pred, base, 5, said.append) == []
     np.testing.assert_array_equal(pred.test, test)
 
 

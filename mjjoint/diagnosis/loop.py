@@ -137,7 +137,7 @@ from .features import operating_conditions, reversal_proximity
 from .floor import EXPLAINED_RATIO, WINDOWING_TRUST, Floor, judged, noise_floor
 from .gear_law import ENERGY_RETURNED, law_energy, law_ratio, law_site
 from .locate import REVERSAL_WINDOW_S, locate, located_conditions
-from .open_starts import leave_out_open_starts, left_out_line
+from .open_starts import leave_out_open_starts
 from .rests import ROTOR_HOLDS, creep, rest_mask
 
 MIN_HELDOUT = 5  # a one-sided signed-rank test on n windows cannot go below p = 2^-n
@@ -420,9 +420,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     say = progress or (lambda msg: None)
     t_start = time.perf_counter()
     roll0 = predictor.rollouts
-    open_starts = [round(float(predictor.m.t[predictor.starts[w]]), 4) for w in leave_out_open_starts(predictor, base)]
-    if open_starts:
-        say(left_out_line(open_starts))
+    open_starts = leave_out_open_starts(predictor, base, MIN_HELDOUT, say)
     if len(predictor.test) < MIN_HELDOUT:
         raise ValueError(f"only {len(predictor.test)} held-out windows: naming an effect needs at least {MIN_HELDOUT} "
                          "(the rank test cannot reach p <= 0.05 with fewer); use a longer recording or shorter windows")

@@ -5,13 +5,11 @@ and for a breakaway after a dwell no lead-in start is right (``Predictor.undeter
 leaves such training windows out for its own model; a held-out one still scored would charge
 every model with 2SEP for a start the recording cannot give, and may hold most of the truth's
 own held-out cost: the lag would then lose to the model without it on that window alone. The
-set is decided once per recording, from the base with 2SEP at its catalogue values (any lag
-leaves the same breakaways open), before the base fit, so every model the diagnosis compares is
-scored on the same windows and the paired tests stay paired.
+set is decided once per recording, from the base with 2SEP at its catalogue values, before the
+base fit, so every model the diagnosis compares is scored on the same windows and the paired
+tests stay paired.
 """
 from __future__ import annotations
-
-import numpy as np
 
 from ..identify.effects import EFFECTS, incompatible, plant_effects
 from ..identify.structure import Structure
@@ -33,11 +31,26 @@ def with_lag(base: Structure) -> Structure | None:
     return base
 
 
-def leave_out_open_starts(predictor: Predictor, base: Structure) -> np.ndarray:
-    """Leaves the held-out windows the base with 2SEP leaves open out of ``predictor.test``
-    (``Predictor.leave_out_open``); returns their indices."""
+def leave_out_open_starts(predictor: Predictor, base: Structure, keep: int, say) -> list[float]:
+    """Leaves the held-out windows the base with 2SEP leaves open (``Predictor.undetermined``)
+    out of ``predictor.test`` (``Predictor.leave_out``), unless fewer than ``keep`` would remain:
+    a short recording is then scored on all of them, as the rank test needs. Says which, and
+    returns their starts [s]."""
     lagged = with_lag(base)
-    return np.zeros(0, int) if lagged is None else predictor.leave_out_open(lagged)
+    if lagged is None:
+        return []
+    windows = predictor.undetermined(lagged, predictor.test)
+    starts = [round(float(predictor.m.t[predictor.starts[w]]), 4) for w in windows]
+    if not starts:
+        return []
+    at = f"held-out windows at {', '.join(f'{t:g}' for t in starts)} s"
+    if len(predictor.test) - len(windows) < keep:
+        say(f"{at} start at rest where the recording leaves the state open; kept in the score, since "
+            f"leaving them out would leave fewer than {keep} held-out windows")
+        return []
+    predictor.leave_out(windows)
+    say(left_out_line(starts))
+    return starts
 
 
 def left_out_line(starts) -> str:

@@ -405,7 +405,7 @@ class Predictor:
         lead = np.maximum(np.r_[0, starts[:-1] + n - starts[1:]], 0)
         self.owned = np.arange(n)[None, :] >= lead[:, None]
         self.holdout = held_out(design, len(starts))
-        self.left_out = np.zeros(len(starts), bool)  # held-out windows no model is scored on (``leave_out_open``)
+        self.left_out = np.zeros(len(starts), bool)  # held-out windows no model is scored on (``leave_out``)
         self.cols = np.arange(w0, n, design.decimate)  # sample offsets used in the cost
         self.nthread = nthread if nthread is not None else _cores()
         meas = self.measured_windows()
@@ -876,7 +876,7 @@ class Predictor:
         """This predictor (the same windows, scratch data and rollout count) with another share of
         its windows held out (``held_out``): the ``fold``-th of k-fold cross-validation, fold 0
         its own split. A fit on it sees none of that fold's held-out windows. Its score counts
-        every one of them: none is left out (``leave_out_open``)."""
+        every one of them: none is left out (``leave_out``)."""
         other = copy.copy(self)
         other.holdout = held_out(self.design, len(self.starts), fold)
         other.left_out = np.zeros(len(self.starts), bool)
@@ -908,13 +908,9 @@ class Predictor:
             return rest[:0]
         return rest[self.lead_in_spread(structure, rest) > UNDETERMINED]
 
-    def leave_out_open(self, structure: Structure) -> np.ndarray:
-        """Leaves the held-out windows whose start the recording leaves open for ``structure``
-        (``undetermined``) out of ``test`` for every model scored afterwards, and returns them.
-        One set for all models keeps their held-out costs paired window by window."""
-        windows = self.undetermined(structure, self.test)
+    def leave_out(self, windows: np.ndarray) -> None:
+        """Leaves held-out ``windows`` out of ``test`` for every model scored afterwards."""
         self.left_out = self.left_out | np.isin(np.arange(len(self.starts)), windows)
-        return windows
 
     @cached_property
     def _held_input(self) -> tuple[np.ndarray, np.ndarray]:
