@@ -106,13 +106,12 @@ def test_the_backlash_is_named(diagnosis):
 @pytest.mark.slow
 def test_a_base_bent_by_the_rod_it_lacks_is_screened_again_free(tmp_path):
     """The route's recording from the default base: every term of the seed's joint on a rigid
-    link. Fitted rigid, the base bends its terms toward the rod (gravity and the tip mass far
-    below the truth, 2SEP's K on its bound) and misses delta and tau at NRMSE 0.95; held there,
-    the rod's screen gains nothing. The model far above its floor is screened again with every
-    parameter free, and the rod is named, with nothing false beside it. Refitted from where the
-    rigid model ended, the model with the rod keeps gravity and the bearing's Coulomb level on
-    their bounds and misses q at 0.31; fitted again from the recording's start, every signal is
-    predicted within 0.3 with nothing on a bound."""
+    link. Fitted rigid, a base can bend its terms toward the rod it lacks (gravity and the tip
+    mass far below the truth), and held there the rod's screen gains nothing; a model far above
+    its floor is screened again with every parameter free, and a bent refit is fitted again
+    from the recording's start (docs/diagnosis.md, "The README's route, measured"). The rod is
+    named, with nothing false beside it, and every signal is predicted within 0.3 with nothing
+    on a bound."""
     diagnosis, _ = _route(tmp_path, {"backlash = 0.0 ": "backlash = 0.0003"}, base=())
     assert "link_flexibility" in diagnosis["missing"], diagnosis["verdict"]
     assert set(diagnosis["missing"]) <= {"link_flexibility", "backlash"}, diagnosis["verdict"]

@@ -139,7 +139,8 @@ def test_a_diagnosis_says_where_its_rollouts_went(diagnosed):
     phases = budget["phases"]
     assert {"base fit", "locate", "screens, subset"} <= set(phases)
     assert sum(p["rollouts"] for p in phases.values()) == pytest.approx(budget["rollouts_full_length"], abs=0.1 * len(phases))
-    assert any(line.split("] ", 1)[-1].startswith("spent: base fit ") for line in lines)
+    spent = [line.split("] ", 1)[-1] for line in lines if line.split("] ", 1)[-1].startswith("spent: ")]
+    assert len(spent) == 1 and all(f"{name} " in spent[0] for name in phases)
     refitted = any(line.split("] ", 1)[-1].startswith("final estimate: refitting") for line in lines)
     assert refitted == ("final robust estimate" in phases)
     assert refitted or any("already under the robust loss" in line or "final estimate: the base's" in line

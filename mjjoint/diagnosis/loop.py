@@ -420,13 +420,14 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
     say = progress or (lambda msg: None)
     t_start = time.perf_counter()
     roll0 = predictor.rollouts
-    open_starts = leave_out_open_starts(predictor, base, MIN_HELDOUT, say)
+    phases = Phases(lambda: predictor.rollouts)
+    with phases("open held-out starts"):
+        open_starts = leave_out_open_starts(predictor, base, MIN_HELDOUT, say)
     if len(predictor.test) < MIN_HELDOUT:
         raise ValueError(f"only {len(predictor.test)} held-out windows: naming an effect needs at least {MIN_HELDOUT} "
                          "(the rank test cannot reach p <= 0.05 with fewer); use a longer recording or shorter windows")
     say(f"fitting the base model ({', '.join(base.effects) or 'minimal'})")
     iterations = lambda i, c: say(f"    iteration {i}: cost {c:.4g}")  # noqa: E731
-    phases = Phases(lambda: predictor.rollouts)
     with phases("base fit"):
         current = _base_fit(predictor, base, options, say, iterations)
     signs = recorded_signs(predictor)
