@@ -189,8 +189,8 @@ def test_the_held_out_windows_the_lag_leaves_open_are_left_out_of_every_score(la
     open_ = every.undetermined(lagged, np.arange(len(every.starts)))
     assert open_.size > 0
     n = len(every.starts)
-    holds = [s for s in range(40) if np.isin(open_, np.flatnonzero(held_out(WindowDesign(seed=s), n))).any()]
-    clear = [s for s in range(40) if not np.isin(open_, np.flatnonzero(held_out(WindowDesign(seed=s), n))).any()]
+    meets = {s: np.isin(open_, np.flatnonzero(held_out(WindowDesign(seed=s), n))).any() for s in range(40)}
+    holds, clear = [s for s in meets if meets[s]], [s for s in meets if not meets[s]]
     assert holds and clear
 
     pred = Predictor(measured, WindowDesign(seed=holds[0]))
@@ -202,6 +202,7 @@ def test_the_held_out_windows_the_lag_leaves_open_are_left_out_of_every_score(la
     assert "kept in the score" in said[-1]
     starts = leave_out_open_starts(pred, base, len(test) - len(left), said.append)
     assert starts == [round(float(measured.t[pred.starts[w]]), 4) for w in left] and "left out" in said[-1]
+    assert leave_out_open_starts(pred, base, len(test) - len(left), said.append) == starts  # the same once more
     np.testing.assert_array_equal(pred.test, np.setdiff1d(test, left))
     np.testing.assert_array_equal(pred.train, train)
     assert not pred.scored_holdout[left].any() and pred.holdout[left].all()

@@ -11,6 +11,8 @@ tests stay paired.
 """
 from __future__ import annotations
 
+import numpy as np
+
 from ..identify.effects import EFFECTS, incompatible, plant_effects
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
@@ -35,18 +37,19 @@ def leave_out_open_starts(predictor: Predictor, base: Structure, keep: int, say)
     """Leaves the held-out windows the base with 2SEP leaves open (``Predictor.undetermined``)
     out of ``predictor.test`` (``Predictor.leave_out``), unless fewer than ``keep`` would remain:
     a short recording is then scored on all of them, as the rank test needs. Says which, and
-    returns their starts [s]."""
+    returns their starts [s]. Decided over every held-out window, so a second call on the same
+    predictor finds the same ones."""
     lagged = with_lag(base)
     if lagged is None:
         return []
-    windows = predictor.undetermined(lagged, predictor.test)
+    held = np.flatnonzero(predictor.holdout)
+    windows = predictor.undetermined(lagged, held)
     starts = [round(float(predictor.m.t[predictor.starts[w]]), 4) for w in windows]
     if not starts:
         return []
-    at = f"held-out windows at {', '.join(f'{t:g}' for t in starts)} s"
-    if len(predictor.test) - len(windows) < keep:
-        say(f"{at} start at rest where the recording leaves the state open; kept in the score, since "
-            f"leaving them out would leave fewer than {keep} held-out windows")
+    if len(held) - len(windows) < keep:
+        say(f"{_windows_at(starts)} start at rest where the recording leaves the state open; kept in the score, "
+            f"since leaving them out would leave fewer than {keep} held-out windows")
         return []
     predictor.leave_out(windows)
     say(left_out_line(starts))
@@ -55,5 +58,8 @@ def leave_out_open_starts(predictor: Predictor, base: Structure, keep: int, say)
 
 def left_out_line(starts) -> str:
     """What the user reads of the windows left out, at their ``starts`` [s]."""
-    return (f"held-out windows at {', '.join(f'{t:g}' for t in starts)} s left out of every score: "
-            "the recording leaves their start at rest open")
+    return f"{_windows_at(starts)} left out of every score: the recording leaves their start at rest open"
+
+
+def _windows_at(starts) -> str:
+    return f"held-out windows at {', '.join(f'{t:g}' for t in starts)} s"

@@ -876,10 +876,9 @@ class Predictor:
         """This predictor (the same windows, scratch data and rollout count) with another share of
         its windows held out (``held_out``): the ``fold``-th of k-fold cross-validation, fold 0
         its own split. A fit on it sees none of that fold's held-out windows. Its score counts
-        every one of them: none is left out (``leave_out``)."""
+        every one of them: the windows left out of this one's (``leave_out``) lie in its own fold."""
         other = copy.copy(self)
         other.holdout = held_out(self.design, len(self.starts), fold)
-        other.left_out = np.zeros(len(self.starts), bool)
         return other
 
     def lead_in_spread(self, structure: Structure, windows: np.ndarray, factors=LEAD_FACTORS) -> np.ndarray:
