@@ -124,3 +124,24 @@ def test_a_generic_forms_size_must_be_resolved_by_its_own_fit():
     assert resolved(result({"a": 1.8, "b": 1.8}, {"a": 1.0, "b": 1.0}), names)
     assert not resolved(result({"a": 1.5, "b": 1.5}, {"a": 1.0, "b": 1.0}), names)
     assert not resolved(SimpleNamespace(structure=SimpleNamespace(values={"a": 1.0}), intervals={}), ["a"])
+
+
+def test_one_size_is_resolved_exactly_where_its_interval_leaves_zero_out():
+    """A checked interval is not symmetric about its estimate: the se toward zero decides, so a
+    single size is resolved where its interval excludes zero, whatever its width on the other
+    side (a link encoder skew of 0.51 ms with [-0.005, 0.925] ms: the mean half-width would have
+    resolved it)."""
+    from types import SimpleNamespace
+
+    from mjjoint.diagnosis.revise import resolved, sizes
+
+    def skew(lo, hi):
+        return SimpleNamespace(structure=SimpleNamespace(values={"lag": 5.07e-4}), intervals={"lag": (lo, hi)})
+    assert not resolved(skew(-4.98e-6, 9.25e-4), ["lag"])
+    assert resolved(skew(4.98e-6, 9.25e-4), ["lag"])
+    assert not resolved(SimpleNamespace(structure=SimpleNamespace(values={"lag": -5.07e-4}),
+                                        intervals={"lag": (-1e-3, 1e-6)}), ["lag"])
+    # the catalogue's signed sizes: zero switches the term off; a positive scale never does
+    assert sizes("sensor_skew") == ["sensor_skew.lag"]
+    assert sizes("torque_ripple") == ["torque_ripple.a", "torque_ripple.b"]
+    assert sizes("backlash") == []

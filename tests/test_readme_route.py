@@ -103,6 +103,18 @@ def test_the_backlash_is_named(diagnosis):
     assert "backlash" in diagnosis["missing"]
 
 
+def _sensor_effects(diagnosis: dict) -> list[str]:
+    """The sensor effects ``diagnosis`` names. The simulated recorder reads every signal at its
+    instant: each one is a false addition, standing in for physics not yet named."""
+    return [e for e in diagnosis["missing"] if EFFECTS[e].site == "sensor"]
+
+
+def test_the_route_names_no_sensor_effect(diagnosis):
+    """A link encoder skew passed the acceptance rule last on this route (-14 %, p 0.0488) with
+    its checked 95 % interval holding zero: refused as a stand-in (``revise.resolved``)."""
+    assert not _sensor_effects(diagnosis), diagnosis["verdict"]
+
+
 @pytest.mark.slow
 def test_a_base_bent_by_the_rod_it_lacks_is_screened_again_free(tmp_path):
     """The route's recording from the default base: every term of the seed's joint on a rigid
@@ -186,7 +198,4 @@ def test_each_gear_effect_is_named_on_the_flexible_arm(gear_route):
 
 @pytest.mark.slow
 def test_each_gear_route_names_no_sensor_effect(gear_route):
-    """The simulated recorder reads every signal at its instant: a sensor effect named is a false
-    addition, standing in for physics not yet named."""
-    effect, found, _ = gear_route
-    assert not [e for e in found["missing"] if EFFECTS[e].site == "sensor"], found["verdict"]
+    assert not _sensor_effects(gear_route[1]), gear_route[1]["verdict"]

@@ -24,8 +24,10 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   the recording then does not show); the model without it, refitted from where its fit left
   the other parameters, replaces the current one where it predicts the held-out windows better (a
   term fitted to its bound is often fitted to none, its gain the model's own from another start).
-  A generic form, the first effect too, is one where its fit cannot tell its size from none
-  (``resolved``). So is an effect related to one refused before that predicted the held-out
+  An effect with a signed size (``sizes``: a skew, an offset, an asymmetry, a ripple; a generic
+  form always), the first effect too, is one where its fit cannot tell that size from none, every
+  95 % interval holding zero, jointly too (``resolved``): a gain whose term the recording cannot
+  place away from none is the other parameters' optimum it carried, not an estimate. So is an effect related to one refused before that predicted the held-out
   windows better than it does: it explains a part of what that stand-in did, and the physics
   acting there is neither.
 - **Swap**: each named effect is replaced by each of its rivals (``rivals``: the effects acting
@@ -56,7 +58,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from ..identify.effects import EFFECTS, base_params, check_effects, plant_effects
-from ..identify.fit import FitResult, finish, fit, window_costs
+from ..identify.fit import FitResult, check_intervals, finish, fit, window_costs
 from ..identify.intervals import Z95
 from ..identify.structure import Structure
 from ..identify.windows import Predictor
@@ -169,12 +171,18 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
     term may only have carried them to a better optimum). Returns (the refusal or None, that refit
     of the model without it or None; a refusal for bounds refits it too, which the loop keeps where
     it predicts the held-out windows better than the model it extends)."""
-    size = [p.name for p in EFFECTS[step.effect].params if not p.log and p.initial == 0.0]
-    if EFFECTS[step.effect].generic and not resolved(after, size):
+    size = sizes(step.effect)
+    generic = EFFECTS[step.effect].generic
+    # A catalogued term without intervals (none estimated) is judged by the other tests; the
+    # intervals judged are the ones the verdict reports (checked against the cost, widened by
+    # the step's bias and the fit's own), not the Jacobian's alone.
+    if size and (generic or all(n in after.intervals for n in size)) and \
+            not resolved(check_intervals(predictor, after, size), size):
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
                         f"passed the acceptance rule with a size its own fit cannot tell from none ({', '.join(size)}: "
-                        "every 95 % interval holds zero, jointly too): a generic form standing in for what the "
-                        "located residual holds"), None
+                        "every 95 % interval holds zero, jointly too): "
+                        + ("a generic form standing in for what the located residual holds" if generic else
+                           "a term standing in for physics elsewhere, not an estimate of its own")), None
     off = switched_off(predictor, after, step)
     carried = off - after.cost_test
     free = None
@@ -366,15 +374,24 @@ def _refit_without(predictor: Predictor, after: FitResult, step: Step, options: 
     return fit(predictor, without(after.structure, step.effects), max_iter=options.fit_iter)
 
 
+def sizes(effect: str) -> list[str]:
+    """``effect``'s signed size parameters, zero for none (a skew, an offset, an asymmetry, a
+    ripple's amplitudes): the ones whose interval can hold the term switched off."""
+    return [p.name for p in EFFECTS[effect].params if not p.log and p.initial == 0.0]
+
+
 def resolved(result: FitResult, names: list[str]) -> bool:
     """Whether the parameters ``names`` (signed, zero for none) are jointly away from zero: their
     Wald statistic, sum (value / se)^2 with each se from its 95 % interval, above chi^2's 95 %
-    point (the sinusoid's two amplitudes are nearly uncorrelated over many periods)."""
+    point (the sinusoid's two amplitudes are nearly uncorrelated over many periods). Each se is
+    taken from the interval's end toward zero, so that one parameter is resolved exactly where its
+    interval, checked and so not symmetric, leaves zero out."""
     wald = 0.0
     for name in names:
         lo, hi = result.intervals.get(name, (-math.inf, math.inf))
-        se = (hi - lo) / (2.0 * Z95)
-        wald += (result.structure.values[name] / se) ** 2 if 0.0 < se < math.inf else 0.0
+        value = result.structure.values[name]
+        se = abs(value - (lo if value > 0.0 else hi)) / Z95
+        wald += (value / se) ** 2 if 0.0 < se < math.inf else 0.0
     return wald > chi2.ppf(0.95, len(names))
 
 
