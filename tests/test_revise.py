@@ -252,7 +252,8 @@ def test_a_sensor_skew_far_below_a_sample_is_a_stand_in(monkeypatch):
     monkeypatch.setattr(rv, "_robust_kept", lambda predictor, result, options: result)
     at_1khz = SimpleNamespace(m=SimpleNamespace(moving_speed=0.2, rate=1000.0))
     before = SimpleNamespace(cost_test=0.000625)
-    shifted = lambda name, lag: SimpleNamespace(cost_test=0.00013, on_bound=[],  # noqa: E731
+    # no intervals: a size none were estimated for is left to the guard's other tests
+    shifted = lambda name, lag: SimpleNamespace(cost_test=0.00013, on_bound=[], intervals={},  # noqa: E731
                                                 structure=SimpleNamespace(values={name: lag}))
     for named in ([_step("transmission_hysteresis")], []):
         refusal, kept = stand_in(at_1khz, before, shifted("sensor_skew.lag", 1.6e-5), _step("sensor_skew"), named,
