@@ -156,8 +156,9 @@ def _fit_variants(predictor: Predictor, structure: Structure, key: str, where: d
 def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: Step, named: list[Step],
              options: DiagnoseOptions, floor_cost: float, say: Callable[[str], None], refusals=()
              ) -> tuple[Revision | None, FitResult | None]:
-    """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): its term
-    switched off at its own fit losing less than the acceptance rule's relative or absolute gain
+    """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): a signed
+    size (``sizes``) its checked 95 % intervals cannot tell from none (``resolved``; the first
+    effect too, and no refit of the model without it), its term switched off at its own fit losing less than the acceptance rule's relative or absolute gain
     (``switched_off``, ``loop.gain_shortfalls``; the first effect too) while it fails that rule
     against the model without it refitted from its values, its own parameters on their
     bounds (the first effect where every one of them is), a characteristic speed fitted below what
@@ -180,7 +181,8 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
             not resolved(check_intervals(predictor, after, size), size):
         return Revision("stand-in", step.effect, before.cost_test, after.cost_test,
                         f"passed the acceptance rule with a size its own fit cannot tell from none ({', '.join(size)}: "
-                        "every 95 % interval holds zero, jointly too): "
+                        + ("its 95 % interval holds zero" if len(size) == 1 else
+                           "every 95 % interval holds zero, jointly too") + "): "
                         + ("a generic form standing in for what the located residual holds" if generic else
                            "a term standing in for physics elsewhere, not an estimate of its own")), None
     off = switched_off(predictor, after, step)
