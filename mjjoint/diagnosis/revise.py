@@ -27,9 +27,9 @@ Three checks, all judged on the held-out windows by the acceptance rule of the a
   An effect with a signed size (``sizes``: a skew, an offset, an asymmetry, a ripple; a generic
   form always), the first effect too, is one where its fit cannot tell that size from none, every
   95 % interval holding zero, jointly too (``resolved``): a gain whose term the recording cannot
-  place away from none is the other parameters' optimum it carried, not an estimate. So is an effect related to one refused before that predicted the held-out
-  windows better than it does: it explains a part of what that stand-in did, and the physics
-  acting there is neither.
+  place away from none is the other parameters' optimum it carried, not an estimate. So is an
+  effect related to one refused before that predicted the held-out windows better than it does:
+  it explains a part of what that stand-in did, and the physics acting there is neither.
 - **Swap**: each named effect is replaced by each of its rivals (``rivals``: the effects acting
   at the same site under a shared residual condition, and the ones the step found
   indistinguishable), the rest refitted; the swap is kept when the swapped model passes the
@@ -158,8 +158,9 @@ def stand_in(predictor: Predictor, before: FitResult, after: FitResult, step: St
              ) -> tuple[Revision | None, FitResult | None]:
     """Whether ``step``, just accepted (``before`` -> ``after``), is a stand-in (module doc): a signed
     size (``sizes``) its checked 95 % intervals cannot tell from none (``resolved``; the first
-    effect too, and no refit of the model without it), its term switched off at its own fit losing less than the acceptance rule's relative or absolute gain
-    (``switched_off``, ``loop.gain_shortfalls``; the first effect too) while it fails that rule
+    effect too, and no refit of the model without it), its term switched off at its own fit
+    losing less than the acceptance rule's relative or absolute gain (``switched_off``,
+    ``loop.gain_shortfalls``; the first effect too) while it fails that rule
     against the model without it refitted from its values, its own parameters on their
     bounds (the first effect where every one of them is), a characteristic speed fitted below what
     the recording resolves (``unresolved_speeds``), a sensor's time shift below a tenth of a sample
