@@ -181,7 +181,8 @@ def test_a_flexible_link_keeps_the_history_after_reversals():
 def test_the_held_out_windows_the_lag_leaves_open_are_left_out_of_every_score(lab):
     """``diagnosis.open_starts``: the held-out windows the base with 2SEP at its catalogue values
     leaves open leave ``test`` (not ``train``), and the truth's own cost there is what no start
-    the recording gives can fix. Held-out sets without such a window stay as they were."""
+    the recording gives can fix; a second fold's leave its own score. Held-out sets without such
+    a window stay as they were."""
     truth, measured = lab
     base = Structure.create(make_case("dynamic_friction", 0).base_effects, NOMINAL, GEAR_RATIO)
     lagged = with_lag(base)
@@ -190,7 +191,9 @@ def test_the_held_out_windows_the_lag_leaves_open_are_left_out_of_every_score(la
     assert open_.size > 0
     n = len(every.starts)
     meets = {s: np.isin(open_, np.flatnonzero(held_out(WindowDesign(seed=s), n))).any() for s in range(40)}
-    holds, clear = [s for s in meets if meets[s]], [s for s in meets if not meets[s]]
+    clear = [s for s in meets if not meets[s]]
+    # a split and a second fold that each hold an open window
+    holds = [s for s in meets if meets[s] and np.isin(open_, np.flatnonzero(held_out(WindowDesign(seed=s), n, 1))).any()]
     assert holds and clear
 
     pred = Predictor(measured, WindowDesign(seed=holds[0]))
@@ -208,7 +211,15 @@ def test_the_held_out_windows_the_lag_leaves_open_are_left_out_of_every_score(la
     assert not pred.scored_holdout[left].any() and pred.holdout[left].all()
     costs = window_costs(pred, truth, test)
     assert costs[np.isin(test, left)].min() > 10 * np.median(costs[~np.isin(test, left)])
-    np.testing.assert_array_equal(pred.refolded(1).test, np.flatnonzero(held_out(pred.design, n, 1)))
+
+    other = pred.refolded(1)  # the second fold takes nothing of the split's but decides its own
+    fold = np.flatnonzero(held_out(pred.design, n, 1))
+    np.testing.assert_array_equal(other.test, fold)
+    left = np.intersect1d(open_, fold)
+    assert leave_out_open_starts(other, base, 5, said.append) == [round(float(measured.t[pred.starts[w]]), 4)
+                                                                 for w in left]
+    np.testing.assert_array_equal(other.test, np.setdiff1d(fold, left))
+    np.testing.assert_array_equal(pred.test, np.setdiff1d(test, np.intersect1d(open_, test)))
 
     pred = Predictor(measured, WindowDesign(seed=clear[0]))
     test = pred.test

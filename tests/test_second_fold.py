@@ -29,11 +29,19 @@ class _Folded(SimpleNamespace):
         return self.other
 
 
-def _setting(monkeypatch, gain_first: np.ndarray, gain_second: np.ndarray, second: bool = True):
+def _setting(monkeypatch, gain_first: np.ndarray, gain_second: np.ndarray, second: bool = True, open_=()):
+    """``open_``: the second fold's held-out windows its start leaves open (``open_starts``)."""
     costs = {("first", "ref"): np.ones(10), ("first", "cand"): np.exp(-gain_first),
              ("second", "ref"): np.ones(10), ("second", "cand"): np.exp(-gain_second)}
     other = _Folded(name="second", test=np.arange(10), rollouts=0.0, other=None)
     pred = _Folded(name="first", test=np.arange(10), rollouts=0.0, other=other if second else None)
+
+    def leave_out_open_starts(predictor, base, keep, say):
+        assert predictor is other and base == "base" and keep == loop.MIN_HELDOUT
+        predictor.test = np.setdiff1d(predictor.test, open_)
+        if len(open_):
+            say(f"held-out windows at {list(open_)} left out of every score")
+        return list(open_)
 
     def fit(predictor, structure, max_iter):
         predictor.rollouts += 1.0
@@ -42,12 +50,13 @@ def _setting(monkeypatch, gain_first: np.ndarray, gain_second: np.ndarray, secon
     monkeypatch.setattr(loop, "fit", fit)
     monkeypatch.setattr(loop, "window_costs", lambda p, s, w: costs[p.name, s][w])
     monkeypatch.setattr(loop, "condition_mask", lambda p, e: (None, ""))
+    monkeypatch.setattr(loop, "leave_out_open_starts", leave_out_open_starts)
     ref = SimpleNamespace(structure="ref", cost_test=1.0)
     choice = loop._Choice("input_delay", SimpleNamespace(structure="cand", cost_test=0.6), 0.4, [],
                           {"p": 0.042, "max_p": 0.025, "windows": "10 held-out windows", "n": 10},
                           ["paired p = 0.042 > 0.025"], True)
     said: list[str] = []
-    return pred, loop.second_fold(pred, ref, choice, loop.DiagnoseOptions(), said.append), choice, said
+    return pred, loop.second_fold(pred, "base", ref, choice, loop.DiagnoseOptions(), said.append), choice, said
 
 
 def test_a_gain_that_shows_on_the_second_fold_too_passes_at_half_the_level(monkeypatch):
@@ -70,6 +79,19 @@ def test_a_gain_the_second_fold_does_not_show_fails_on_both(monkeypatch):
     assert folded.only_inconsistent and folded.consistency["n"] == 20
     assert "on 20 held-out windows of two folds (a longer recording" in loop.rejection(folded)
     assert "fails" in said[0]
+
+
+def test_the_second_fold_scores_none_of_its_windows_the_recording_leaves_open(monkeypatch):
+    """Its open windows (here the two where the candidate loses most) leave its score, as the
+    split's do: 18 windows are judged, not 20."""
+    first = np.array([0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2, -0.35, -0.25])
+    second = np.array([0.7, 0.6, 0.5, 0.45, 0.4, 0.35, 0.3, 0.25, -0.9, -0.8])
+    _, scored, _, _ = _setting(monkeypatch, first, second)
+    _, folded, _, said = _setting(monkeypatch, first, second, open_=(8, 9))
+    assert scored.consistency["n"] == 20 and folded.consistency["n"] == 18
+    assert folded.consistency["p"] < scored.consistency["p"]
+    assert said[0] == "  second fold: held-out windows at [8, 9] left out of every score"
+    assert "passes" in said[1]
 
 
 def test_a_recording_too_short_for_a_second_fold_keeps_the_choice(monkeypatch):

@@ -502,7 +502,7 @@ def diagnose(predictor: Predictor, base: Structure, options: DiagnoseOptions = D
                 choice = pair  # its steps' screen says "together with" the other
         if choice.failed and choice.only_inconsistent and options.folds:
             with phases("second fold"):
-                choice = second_fold(predictor, ref, choice, options, say)
+                choice = second_fold(predictor, base, ref, choice, options, say)
         best, cand, gain = choice.best, choice.cand, choice.gain
         unresolved = above
         if choice.failed:
@@ -1501,13 +1501,16 @@ def consistency_record(d: np.ndarray, inside: np.ndarray | None, text: str, held
 SECOND_FOLD = 1
 
 
-def second_fold(predictor: Predictor, ref: FitResult, choice: _Choice, options: DiagnoseOptions, say) -> _Choice:
+def second_fold(predictor: Predictor, base: Structure, ref: FitResult, choice: _Choice, options: DiagnoseOptions,
+                say) -> _Choice:
     """``choice``, a material gain only the rank test refused at its level, tested once more at
     half that level (Bonferroni: this look adds at most that half to the rate of false
     additions) on the held-out windows of its split and of a second fold
     (``Predictor.refolded``), twice as many. The reference and the candidate are each fitted on
     the second fold's training windows from where their screens ended, so neither has seen the
-    new held-out windows but through its start, alike for both. A short recording's few held-out
+    new held-out windows but through its start, alike for both; the fold's held-out windows whose
+    start the recording leaves open for ``base`` with 2SEP are left out of its score, as the
+    split's are (``open_starts``). A short recording's few held-out
     windows make the signed-rank test coarse (ten give p in steps of about 0.001 to 0.01 near the
     level): a gain the recording supports shows again on windows no fit has seen, a gain of chance
     does not. The choice comes back judged on both folds; where the recording holds too few
@@ -1517,6 +1520,7 @@ def second_fold(predictor: Predictor, ref: FitResult, choice: _Choice, options: 
         other = predictor.refolded(SECOND_FOLD)
     except ValueError:
         return choice
+    leave_out_open_starts(other, base, MIN_HELDOUT, lambda text: say(f"  second fold: {text}"))
     effect = parts(choice.best)[-1]
     refits = [fit(other, r.structure, max_iter=options.fit_iter) for r in (ref, choice.cand)]
     predictor.rollouts = other.rollouts

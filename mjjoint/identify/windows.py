@@ -876,7 +876,8 @@ class Predictor:
         """This predictor (the same windows, scratch data and rollout count) with another share of
         its windows held out (``held_out``): the ``fold``-th of k-fold cross-validation, fold 0
         its own split. A fit on it sees none of that fold's held-out windows. Its score counts
-        every one of them: the windows left out of this one's (``leave_out``) lie in its own fold."""
+        every one of them until some are left out of it (``leave_out``): those left out of this
+        one's lie in this one's fold."""
         other = copy.copy(self)
         other.holdout = held_out(self.design, len(self.starts), fold)
         return other
